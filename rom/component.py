@@ -9,9 +9,9 @@ Every node carries three translational DOFs, ordered node-major: DOF of (node in
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from types import MappingProxyType
-from typing import Mapping
 
 import numpy as np
 import scipy.sparse as sp

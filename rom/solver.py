@@ -1,0 +1,191 @@
+"""Modal solver: lowest modes of K φ = ω² M φ by shift-invert Lanczos on a sparse direct factorization.
+
+The factorization backend is chosen by measurement (``benchmarks/fe_modes.py``): MKL Pardiso (through
+``pypardiso``, symmetric positive-definite mode on the upper triangle) when it is installed, SciPy's SuperLU
+otherwise. Both sit behind :func:`factorize`, which returns an object with a ``solve(b)`` method.
+
+The shift is placed *below* zero, σ = −(2π f_shift)², so that ``K − σ M`` is positive definite even for a
+free–free component whose ``K`` is singular, and rigid-body modes come out as the lowest eigenvalues.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.linalg as sla
+
+__all__ = ["ModalSolution", "factorize", "available_backends", "solve_modes", "nodal_diameters"]
+
+log = logging.getLogger(__name__)
+
+
+def available_backends() -> list[str]:
+    """Factorization backends usable here, fastest first."""
+    out = []
+    try:
+        import pypardiso  # noqa: F401
+
+        out.append("pardiso")
+    except ImportError:  # pragma: no cover - depends on the platform
+        pass
+    out.append("superlu")
+    return out
+
+
+class _PardisoFactor:
+    """MKL Pardiso Cholesky-type factorization of a symmetric positive-definite matrix (mtype 2)."""
+
+    def __init__(self, A: sp.spmatrix):
+        import pypardiso
+
+        self._A = sp.triu(A, format="csr").astype(np.float64)
+        self._A.sort_indices()
+        # size_limit_storage=∞: keep a copy for the "same matrix?" check instead of hashing it per solve.
+        self._solver = pypardiso.PyPardisoSolver(mtype=2, size_limit_storage=np.inf)
+        self._solver.factorize(self._A)
+
+    def solve(self, b: np.ndarray) -> np.ndarray:
+        return self._solver.solve(self._A, np.asarray(b, dtype=np.float64))
+
+    def free(self) -> None:
+        self._solver.free_memory(everything=True)
+
+
+class _SuperLUFactor:
+    def __init__(self, A: sp.spmatrix):
+        self._lu = sla.splu(sp.csc_matrix(A), permc_spec="MMD_AT_PLUS_A")
+
+    def solve(self, b: np.ndarray) -> np.ndarray:
+        return self._lu.solve(np.asarray(b, dtype=np.float64))
+
+    def free(self) -> None:
+        self._lu = None
+
+
+def factorize(A: sp.spmatrix, backend: str = "auto"):
+    """Factorize a symmetric positive-definite sparse matrix.
+
+    Parameters
+    ----------
+    A : sparse matrix, shape (n, n)
+    backend : {"auto", "pardiso", "superlu"}
+
+    Returns
+    -------
+    object with ``solve(b)`` (b of shape (n,) or (n, k)) and ``free()``.
+    """
+    if backend == "auto":
+        backend = available_backends()[0]
+    if backend == "pardiso":
+        if "pardiso" not in available_backends():
+            raise ValueError("backend 'pardiso' requested but pypardiso is not installed; use 'superlu'")
+        return _PardisoFactor(A)
+    if backend == "superlu":
+        return _SuperLUFactor(A)
+    raise ValueError(f"backend must be 'auto', 'pardiso' or 'superlu', got {backend!r}")
+
+
+@dataclass(frozen=True, eq=False)
+class ModalSolution:
+    """Lowest modes of an undamped FE model.
+
+    Attributes
+    ----------
+    frequencies_hz : ndarray, shape (n_modes,)
+        Elastic natural frequencies in Hz, ascending.
+    shapes : ndarray, shape (n_dof, n_modes)
+        Mass-normalised elastic mode shapes (φᵀ M φ = 1).
+    rigid_shapes : ndarray, shape (n_dof, n_rigid)
+        Mass-normalised rigid-body modes (zero-frequency eigenvectors).
+    """
+
+    frequencies_hz: np.ndarray
+    shapes: np.ndarray
+    rigid_shapes: np.ndarray
+
+    @property
+    def n_rigid(self) -> int:
+        return int(self.rigid_shapes.shape[1])
+
+    @property
+    def omega2(self) -> np.ndarray:
+        """Eigenvalues ω² in (rad/s)², shape (n_modes,)."""
+        return (2 * np.pi * self.frequencies_hz) ** 2
+
+
+def solve_modes(
+    K: sp.spmatrix,
+    M: sp.spmatrix,
+    n_modes: int,
+    *,
+    backend: str = "auto",
+    shift_hz: float = 200.0,
+    max_rigid: int = 6,
+    rigid_ratio: float = 1e-6,
+) -> ModalSolution:
+    """Lowest ``n_modes`` elastic modes of (K, M), rigid-body modes reported apart.
+
+    Parameters
+    ----------
+    K, M : sparse matrices, shape (n, n)
+        Symmetric stiffness (positive semi-definite) and mass (positive definite).
+    n_modes : int
+        Number of elastic modes wanted.
+    backend : str
+        Factorization backend, see :func:`factorize`.
+    shift_hz : float
+        The shift is σ = −(2π shift_hz)².
+    max_rigid : int
+        Most rigid-body modes expected (6 for a free 3-D body); that many extra modes are computed.
+    rigid_ratio : float
+        A mode is rigid when ω² < rigid_ratio · max ω² of the computed set (and below the shift magnitude).
+    """
+    n = K.shape[0]
+    if K.shape != M.shape or K.shape[0] != K.shape[1]:
+        raise ValueError(f"K and M must be square and of equal shape, got {K.shape} and {M.shape}")
+    if not (isinstance(n_modes, (int, np.integer)) and 1 <= n_modes):
+        raise ValueError(f"n_modes must be a positive integer, got {n_modes!r}")
+    k = min(n_modes + max_rigid, n - 1)
+    sigma = -((2 * math.pi * shift_hz) ** 2)
+    A = (K - sigma * M).tocsr()
+    fac = factorize(A, backend)
+    op = sla.LinearOperator((n, n), matvec=fac.solve, dtype=np.float64)
+    try:
+        vals, vecs = sla.eigsh(K, k=k, M=M, sigma=sigma, which="LM", OPinv=op, tol=1e-12)
+    finally:
+        fac.free()
+    order = np.argsort(vals)
+    vals, vecs = vals[order], vecs[:, order]
+    # Mass-normalise explicitly (eigsh returns M-orthonormal vectors, but make it exact).
+    vecs = vecs / np.sqrt(np.einsum("ij,ij->j", vecs, M @ vecs))
+    scale = max(abs(vals).max(), 1.0)
+    rigid = (vals < rigid_ratio * scale) & (np.arange(vals.size) < max_rigid)
+    elastic = np.flatnonzero(~rigid)[:n_modes]
+    freqs = np.sqrt(np.clip(vals[elastic], 0.0, None)) / (2 * np.pi)
+    log.info("solve_modes: %d DOF, %d rigid, %d elastic (%.1f–%.1f Hz)", n, rigid.sum(), elastic.size,
+             freqs[0] if freqs.size else 0, freqs[-1] if freqs.size else 0)
+    return ModalSolution(freqs, vecs[:, elastic], vecs[:, rigid])
+
+
+def nodal_diameters(values: np.ndarray) -> np.ndarray:
+    """Nodal diameter of each mode from one response per sector.
+
+    Parameters
+    ----------
+    values : ndarray, shape (n_sectors, n_modes)
+        The response of each mode at one equivalent point per sector, sectors in angular order.
+
+    Returns
+    -------
+    ndarray of int, shape (n_modes,)
+        The harmonic index 0..n_sectors//2 with the largest circumferential Fourier amplitude.
+    """
+    values = np.asarray(values)
+    if values.ndim != 2:
+        raise ValueError(f"values must have shape (n_sectors, n_modes), got {values.shape}")
+    spec = np.abs(np.fft.rfft(values, axis=0))
+    return np.argmax(spec, axis=0).astype(int)
