@@ -72,12 +72,12 @@ class AcademicParams:
 
     n_blades: int = 18
     disk_outer_radius: float = 0.100
-    bore_radius: float = 0.020
+    bore_radius: float = 0.034
     disk_thickness: float = 0.009
     slot_bottom_radius: float = 0.0885
-    slot_width: float = 0.010
+    slot_width: float = 0.016
     blade_tip_radius: float = 0.206
-    blade_thickness: float = 0.003
+    blade_thickness: float = 0.0024
     shank_length: float = 0.004
     disk_material: Material = field(default_factory=lambda: Material(E=202e9, rho=7864.6))
     blade_material: Material = field(default_factory=lambda: Material(E=212e9, rho=7832.5))

@@ -1,0 +1,210 @@
+"""Poly-reference least-squares complex frequency-domain estimator (pLSCF).
+
+Model (right matrix-fraction, real coefficients, z-domain basis ``z_k = exp(j*omega_k*Ts)``)::
+
+    H_o(omega_k) = B_o(z_k) A(z_k)^-1,   B_o(z) = sum_j z^j beta_oj (1 x n_i),   A(z) = sum_j z^j alpha_j (n_i x n_i)
+
+The linearised equation error ``B_o(z_k) - H_o(omega_k) A(z_k)`` is minimised in least squares; the
+numerator coefficients are eliminated (normal-equation reduction ``M = sum_o T_o - S_o^T R^-1 S_o``) and
+``alpha_p = I`` is imposed. ``R``, ``S_o`` and ``T`` are Toeplitz in the coefficient index and are
+built from FFTs when the lines are evenly spaced. Because the Cholesky factor of a leading block of ``R``
+is the leading block of the full factor, the reduced matrices of all orders come from one pass over
+rows (a cumulative sum), so a whole stabilization series costs little more than its highest order.
+
+References: Guillaume, Verboven, Vanlanduit, Van der Auweraer, Peeters, "A poly-reference implementation
+of the least-squares complex frequency-domain estimator", IMAC XXI (2003); Peeters et al., "The
+PolyMAX frequency-domain method", Shock and Vibration 11 (2004).
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Iterable
+
+import numpy as np
+import scipy.linalg as sla
+from tqdm import tqdm
+
+from .frf import FRFSet
+from .poles import PoleSet, band_data, resolve_orders
+
+__all__ = ["lscf"]
+
+log = logging.getLogger(__name__)
+
+
+def _power_sums(freq: np.ndarray, X: np.ndarray, p: int) -> tuple[np.ndarray, float]:
+    """``sum_k z_k**m * X[..., k]`` for m = -p..p, and the sampling time Ts.
+
+    Parameters
+    ----------
+    freq : ndarray, shape (n_freq,)
+        Lines in Hz.
+    X : ndarray, shape (n_series, n_freq)
+    p : int
+        Highest power.
+
+    Returns
+    -------
+    sums : ndarray of complex128, shape (n_series, 2p + 1)
+        Column ``m + p`` holds the sum for power m.
+    Ts : float
+        Sampling time in s (the highest line maps close to ``z = -1``).
+    """
+    df = np.diff(freq)
+    uniform = bool(np.all(np.abs(df - df[0]) <= 1e-6 * df[0]))
+    m = np.arange(-p, p + 1)
+    if uniform:
+        L = max(int(np.ceil(freq[-1] / df[0] - 1e-6)), freq.size, p + 1)
+        n_fft = 2 * L
+        if n_fft <= 1 << 22:
+            Ts = 1.0 / (2.0 * L * df[0])
+            theta0 = 2.0 * np.pi * freq[0] * Ts
+            spec = np.fft.ifft(X, n=n_fft, axis=-1) * n_fft  # sum_k X_k exp(+2 pi j m k / n_fft)
+            sums = spec[:, m % n_fft] * np.exp(1j * m * theta0)[None, :]
+            return sums, Ts
+    Ts = 1.0 / (2.0 * freq[-1])
+    phase = 2.0 * np.pi * freq * Ts
+    sums = np.empty((X.shape[0], m.size), dtype=np.complex128)
+    chunk = max(1, int(2e7 // max(freq.size, 1)))
+    for start in range(0, m.size, chunk):
+        mm = m[start : start + chunk]
+        E = np.exp(1j * np.outer(phase, mm))  # (n_freq, chunk)
+        sums[:, start : start + chunk] = X @ E
+    return sums, Ts
+
+
+def _cholesky(R: np.ndarray) -> np.ndarray:
+    try:
+        return np.linalg.cholesky(R)
+    except np.linalg.LinAlgError:
+        eps = 1e-12 * np.trace(R) / R.shape[0]
+        log.info("LSCF: R not positive definite, regularising with %.3g", eps)
+        return np.linalg.cholesky(R + eps * np.eye(R.shape[0]))
+
+
+def lscf(
+    frf: FRFSet,
+    band: tuple[float, float] | None = None,
+    max_order: int = 40,
+    orders: Iterable[int] | None = None,
+    normalize: bool = True,
+    progress: bool = False,
+) -> PoleSet:
+    """Estimate poles with the poly-reference LSCF method for a series of model orders.
+
+    Parameters
+    ----------
+    frf : FRFSet
+        Measured FRFs, shape (n_outputs, n_inputs, n_freq); any form (the poles do not depend on it).
+    band : (f_lo, f_hi) in Hz, optional
+        Band to fit; default all finite lines.
+    max_order : int
+        Highest polynomial order p (orders 1..p when ``orders`` is None). Order p holds up to
+        ``p * n_inputs / 2`` modes.
+    orders : iterable of int, optional
+        Explicit orders, e.g. ``range(2, 201, 2)``.
+    normalize : bool
+        Scale each output to unit RMS over the band before fitting (equal weight per output).
+    progress : bool
+        Show a tqdm progress bar on stderr.
+
+    Returns
+    -------
+    PoleSet
+        Poles (rad/s, positive imaginary part, natural frequency within the band) per order, with
+        vectors ``vec(psi_r l_r^T)`` (psi: numerator at the pole times l, l: participation factor).
+    """
+    order_list = resolve_orders(max_order, orders)
+    data = band_data(frf, band, per="output" if normalize else "none")
+    H = data.H
+    n_o, n_i, n_f = H.shape
+    p_max = order_list[-1]
+    P = p_max + 1
+    if n_f * n_o * n_i < P * n_i:
+        log.warning("LSCF: %d equations for %d denominator unknowns; the fit is underdetermined", n_f * n_o, P * n_i)
+
+    # Power sums: r (R), s_oi (S) and t_ii' (T), all for powers -p..p.
+    flat = H.reshape(n_o * n_i, n_f)
+    gram = np.einsum("oaf,obf->abf", H.conj(), H).reshape(n_i * n_i, n_f)
+    series = np.vstack([np.ones((1, n_f)), flat, gram])
+    sums, Ts = _power_sums(data.freq_hz, series, p_max)
+    r = sums[0].real
+    s = sums[1 : 1 + n_o * n_i].reshape(n_o, n_i, 2 * p_max + 1)
+    t = sums[1 + n_o * n_i :].reshape(n_i, n_i, 2 * p_max + 1)
+
+    a = np.arange(P)
+    D = a[None, :] - a[:, None] + p_max  # index of power (b - a)
+    R = r[D]
+    # S_o[a, (b, i)] = -Re s_oi[b - a]
+    S = -np.transpose(s[:, :, D].real, (0, 2, 3, 1)).reshape(n_o, P, P * n_i)
+    # T[(a, i), (b, i')] = Re t_ii'[b - a]
+    T = np.transpose(t[:, :, D].real, (2, 0, 3, 1)).reshape(P * n_i, P * n_i)
+
+    L = _cholesky(R)
+    W = sla.solve_triangular(L, np.transpose(S, (1, 0, 2)).reshape(P, n_o * P * n_i), lower=True)
+    W = W.reshape(P, n_o, P * n_i)
+
+    G = np.zeros((P * n_i, P * n_i))
+    wanted = set(order_list)
+    out_order, out_pole, out_vec = [], [], []
+    f_lo, f_hi = data.band_hz
+    bar = tqdm(total=len(order_list), desc="LSCF", unit="order", disable=not progress, leave=False)
+    for row in range(P):
+        Wr = W[row]
+        G += Wr.T @ Wr
+        p = row
+        if p not in wanted:
+            continue
+        c = (p + 1) * n_i
+        M = T[:c, :c] - G[:c, :c]
+        k = p * n_i
+        try:
+            top = -np.linalg.solve(M[:k, :k], M[:k, k:])
+        except np.linalg.LinAlgError:
+            top = -np.linalg.lstsq(M[:k, :k], M[:k, k:], rcond=None)[0]
+        alpha = np.vstack([top, np.eye(n_i)])  # (c, n_i)
+        if n_i == 1:
+            comp = np.zeros((p, p))
+            if p > 1:
+                comp[:-1, 1:] = np.eye(p - 1)
+            comp[-1, :] = -top[:, 0]
+            z = np.linalg.eigvals(comp)
+            lvec = np.ones((1, z.size), dtype=np.complex128)
+        else:
+            comp = np.zeros((k, k))
+            if p > 1:
+                comp[:-n_i, n_i:] = np.eye(k - n_i)
+            comp[-n_i:, :] = -top.T
+            z, V = np.linalg.eig(comp)
+            lvec = V[:n_i, :]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            lam = np.log(z.astype(np.complex128)) / Ts
+        fn = np.abs(lam) / (2 * np.pi)
+        keep = (lam.imag > 0) & (fn >= f_lo) & (fn <= f_hi) & np.isfinite(lam)
+        lam, zk, lvec = lam[keep], z[keep], lvec[:, keep]
+        if lam.size:
+            # numerator coefficients theta_o = -R_p^-1 S_o alpha, then psi = B(z_r) l_r
+            Wa = W[: p + 1, :, :c] @ alpha  # (p+1, n_o, n_i)
+            theta = -sla.solve_triangular(L[: p + 1, : p + 1].T, Wa.reshape(p + 1, n_o * n_i), lower=False)
+            theta = theta.reshape(p + 1, n_o, n_i)
+            Zp = zk[None, :] ** np.arange(p + 1)[:, None]  # (p+1, n_r)
+            Bl = np.einsum("joi,ir,jr->or", theta, lvec, Zp)  # (n_o, n_r)
+            Bl = Bl / data.scale[:, None]
+            vec = (Bl[:, None, :] * lvec[None, :, :]).reshape(n_o * n_i, lam.size).T if n_i > 1 else Bl.T
+            out_order.append(np.full(lam.size, p))
+            out_pole.append(lam)
+            out_vec.append(vec)
+        bar.update(1)
+    bar.close()
+    n_vec = n_o * n_i
+    return PoleSet(
+        method="lscf",
+        band_hz=data.band_hz,
+        orders=order_list,
+        order=np.concatenate(out_order) if out_order else np.zeros(0, int),
+        pole=np.concatenate(out_pole) if out_pole else np.zeros(0, complex),
+        vector=np.vstack(out_vec) if out_vec else np.zeros((0, n_vec), complex),
+        outputs=frf.outputs,
+        inputs=frf.inputs,
+    )

@@ -1,0 +1,119 @@
+"""The academic bladed disk: geometry, conformity, physics facts, and the paper's Table 1."""
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from rom.academic import AcademicParams, Material, build_bladed_disk
+from rom.calibration import calibrate_modulus
+from rom.solver import nodal_diameters, solve_modes
+
+TABLE1_HZ = np.array([1090.6, 1971.1, 2638.1, 3647.6, 4421.5])
+TABLE1_ND = [2, 0, 3, 1, 4]
+
+
+def _distinct(freqs, tol=1e-4):
+    keep = [0] + [i for i in range(1, freqs.size) if freqs[i] / freqs[i - 1] - 1 > tol]
+    return np.array(keep)
+
+
+def test_paper_dimensions():
+    p = AcademicParams()
+    assert p.n_blades == 18
+    assert 2 * p.disk_outer_radius == pytest.approx(0.200)
+    assert p.blade_length == pytest.approx(0.1175)
+    assert 2 * p.blade_tip_radius == pytest.approx(0.412)
+    assert p.grid == (7, 31)
+
+
+def test_mass_equals_density_times_analytic_volume(coarse_bd):
+    p = coarse_bd.params
+    assert coarse_bd.disk.mass() == pytest.approx(p.disk_material.rho * p.disk_volume(), rel=1e-3)
+    assert coarse_bd.blade.mass() == pytest.approx(p.blade_material.rho * p.blade_volume(), rel=1e-3)
+
+
+def test_interface_grids_conform_in_every_slot(coarse_bd):
+    gaps = [coarse_bd.interface_gap(s) for s in range(1, coarse_bd.n_slots + 1)]
+    assert max(gaps) <= 1e-9
+    # The grids are distinct nodes with the model's grid shape.
+    for s in (1, 18):
+        for f in ("L", "R"):
+            g = coarse_bd.disk.node_set(f"slot{s}_{f}")
+            assert g.shape == (3, 7) and np.unique(g).size == g.size
+
+
+def test_grid_orientation_rows_axial_columns_radial_outward(coarse_bd):
+    X = coarse_bd.blade.coords
+    L, R = coarse_bd.blade.node_set("L"), coarse_bd.blade.node_set("R")
+    assert np.all(np.diff(X[L][:, :, 2], axis=0) > 0)  # rows: z increases
+    assert np.all(np.diff(X[L][:, :, 1], axis=1) > 0)  # columns: radially outward
+    assert np.all(X[L][..., 0] < 0) and np.all(X[R][..., 0] > 0)  # L at −x, R at +x
+
+
+@pytest.mark.parametrize("which", ["disk", "blade"])
+def test_free_component_has_exactly_six_rigid_body_modes(coarse_bd, which):
+    comp = getattr(coarse_bd, which)
+    sol = solve_modes(comp.K, comp.M, 4, max_rigid=8)
+    assert sol.n_rigid == 6
+    assert sol.frequencies_hz[0] > 100.0
+
+
+def test_free_disk_nd_pairs_are_degenerate_and_order_matches_table1(coarse_bd):
+    d = coarse_bd.disk
+    sol = solve_modes(d.K, d.M, 14)
+    nd = nodal_diameters(sol.shapes[3 * d.node_set("meas") + 2])
+    f = sol.frequencies_hz
+    keep = _distinct(f)
+    assert list(nd[keep][:5]) == TABLE1_ND
+    for k in keep[:5]:
+        if nd[k] >= 1:
+            assert f[k + 1] / f[k] - 1 < 1e-6, f"ND {nd[k]} pair split by {f[k + 1] / f[k] - 1:.2e}"
+
+
+def test_calibration_hits_target_and_scales_all_modes(coarse_bd):
+    cal = calibrate_modulus(coarse_bd.blade, 900.0)
+    sol = solve_modes(cal.component.K, cal.component.M, 3)
+    assert sol.frequencies_hz[0] == pytest.approx(900.0, rel=1e-8)
+    before = solve_modes(coarse_bd.blade.K, coarse_bd.blade.M, 3).frequencies_hz
+    np.testing.assert_allclose(sol.frequencies_hz, before * np.sqrt(cal.scale), rtol=1e-8)
+
+
+@pytest.mark.slow
+def test_default_disk_table1_after_calibration():
+    """Default level: ND order 2, 0, 3, 1, 4 and each of the first five within 15 % of Table 1.
+
+    Calibration rescales every eigenvalue by one factor (checked in the test above), so one modal solve
+    gives the calibrated frequencies as f · 1090.6 / f₁.
+    """
+    d = build_bladed_disk(AcademicParams(level="default")).disk
+    sol = solve_modes(d.K, d.M, 12)
+    nd = nodal_diameters(sol.shapes[3 * d.node_set("meas") + 2])
+    keep = _distinct(sol.frequencies_hz)[:5]
+    assert list(nd[keep]) == TABLE1_ND
+    scale = TABLE1_HZ[0] / sol.frequencies_hz[0]
+    err = sol.frequencies_hz[keep] * scale / TABLE1_HZ - 1
+    assert np.all(np.abs(err) < 0.15), err
+    assert 150e9 < d.meta["E"] * scale**2 < 250e9  # the calibrated modulus stays physical
+
+
+BAD = [
+    (dict(n_blades=1), "n_blades"),
+    (dict(disk_thickness=0.0), "disk_thickness"),
+    (dict(slot_width=-0.01), "slot_width"),
+    (dict(bore_radius=0.095), "bore_radius"),
+    (dict(slot_width=0.05), "slot_width"),  # wider than the slot pitch: roots overlap
+    (dict(n_blades=60), "slot_width"),  # 60 slots of 16 mm do not fit on the rim
+    (dict(grid=(7, 30)), "grid"),  # even column count cannot take every node of quadratic elements
+    (dict(grid=(1, 31)), "grid"),
+    (dict(level="ultra"), "level"),
+    (dict(blade_thickness=0.02), "blade_thickness"),
+    (dict(blade_tip_radius=0.101), "blade_tip_radius"),
+    (dict(disk_material=Material(E=-1.0, rho=7800.0)), "disk_material.E"),
+]
+
+
+@pytest.mark.parametrize(("change", "name"), BAD)
+def test_bad_parameters_raise_value_error_naming_parameter(change, name):
+    with pytest.raises(ValueError, match=name.replace(".", r"\.")):
+        dataclasses.replace(AcademicParams(level="coarse"), **change)

@@ -1,0 +1,20 @@
+"""The import names ``rom``/``identify`` are also unrelated PyPI packages: make sure ours are imported."""
+
+from pathlib import Path
+
+import pytest
+
+REPO = Path(__file__).resolve().parents[1]
+
+
+@pytest.mark.parametrize("name", ["rom", "ema", "bladetwin", "identify", "lab"])
+def test_package_resolves_to_this_repository(name):
+    import importlib
+    import importlib.util
+
+    if importlib.util.find_spec(name) is None:
+        if (REPO / name).is_dir():
+            pytest.fail(f"package {name} exists in the repository but cannot be imported")
+        pytest.skip(f"package {name} not created yet")
+    mod = importlib.import_module(name)
+    assert Path(mod.__file__).resolve().parent == REPO / name
