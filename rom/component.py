@@ -103,7 +103,8 @@ class Component:
         try:
             return self.node_sets[key]
         except KeyError:
-            raise KeyError(f"Component {self.name!r} has no node set {key!r}; available: {sorted(self.node_sets)}") from None
+            avail = sorted(self.node_sets)
+            raise KeyError(f"Component {self.name!r} has no node set {key!r}; available: {avail}") from None
 
     def mass(self) -> float:
         """Total mass in kg (rigid translation in x through M)."""
