@@ -14,7 +14,7 @@ import sys
 __all__ = ["main", "build_parser"]
 
 # Sub-command modules, in help order. Each must define ``register(subparsers) -> None``.
-_COMMAND_MODULES = ("cli_run", "cli_fe", "cli_ema")
+_COMMAND_MODULES = ("cli_run", "cli_fe", "cli_ema", "cli_rom")
 
 
 def build_parser() -> argparse.ArgumentParser:

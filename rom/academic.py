@@ -350,9 +350,11 @@ def build_bladed_disk(params: AcademicParams | None = None) -> BladedDisk:
     disk = Component(
         "disk", Kd, Md, np.arange(1, dmesh.coords.shape[0] + 1), dmesh.coords, disk_sets,
         meta={"meas_direction": 3, "n_elements": int(dmesh.conn.shape[0]), "E": p.disk_material.E},
+        elements=dmesh.conn,
     )
     blade = Component(
         "blade", Kb, Mb, np.arange(1, bmesh.coords.shape[0] + 1), bmesh.coords, blade_sets,
         meta={"meas_direction": 1, "n_elements": int(bmesh.conn.shape[0]), "E": p.blade_material.E},
+        elements=bmesh.conn,
     )
     return BladedDisk(p, disk, blade)

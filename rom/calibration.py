@@ -70,7 +70,7 @@ def calibrate_modulus(component: Component, target_hz: float, mode: int = 0, bac
     E0 = float(component.meta["E"])
     meta = dict(component.meta, E=E0 * scale)
     new = Component(component.name, component.K * scale, component.M, component.node_ids, component.coords,
-                    dict(component.node_sets), meta)
+                    dict(component.node_sets), meta, component.elements)
     return Calibration(new, E0, E0 * scale, mode, f, float(target_hz))
 
 

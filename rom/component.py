@@ -43,6 +43,8 @@ class Component:
         ``(n_i, n_j)``), entries are indices into ``coords``.
     meta : mapping
         Free-form, JSON-serialisable metadata (material, geometry parameters).
+    elements : ndarray of int64, shape (n_elements, 20), optional
+        Element connectivity (node indices, hex20 order of :mod:`rom.hex20`), for plots and export.
     """
 
     name: str
@@ -52,6 +54,7 @@ class Component:
     coords: np.ndarray
     node_sets: Mapping[str, np.ndarray] = field(default_factory=dict)
     meta: Mapping[str, object] = field(default_factory=dict)
+    elements: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         n_nodes = self.coords.shape[0]
@@ -114,4 +117,5 @@ class Component:
 
     def with_matrices(self, K: sp.spmatrix, M: sp.spmatrix, name: str | None = None) -> Component:
         """A copy with other matrices (e.g. after re-calibration), same nodes and sets."""
-        return Component(name or self.name, K, M, self.node_ids, self.coords, dict(self.node_sets), dict(self.meta))
+        return Component(name or self.name, K, M, self.node_ids, self.coords, dict(self.node_sets), dict(self.meta),
+                         self.elements)

@@ -1,0 +1,168 @@
+"""``bladetwin fe``: the academic FE twin (model info, modes, mesh picture)."""
+
+from __future__ import annotations
+
+import argparse
+
+from .util import atomic_savefig, format_table, print_json, step
+
+__all__ = ["register", "build_model", "fe_info", "fe_modes"]
+
+TABLE1_HZ = [1090.6, 1971.1, 2638.1, 3647.6, 4421.5, 5747.6, 5947.9]
+
+
+def _level_arg(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--level", default="default", choices=["coarse", "default", "fine"],
+                   help="mesh level (default: %(default)s; coarse is for tests)")
+    p.add_argument("--grid", default=None, metavar="ROWSxCOLS",
+                   help="contact grid per flank, e.g. 7x31 (default) or 3x7 for a quick look")
+
+
+def register(sub) -> None:
+    fe = sub.add_parser("fe", help="the academic FE twin: info, modes, mesh plot",
+                        description="Inspect the embedded academic bladed-disk FE model.")
+    fsub = fe.add_subparsers(dest="fe_command", metavar="SUBCOMMAND")
+    fsub.required = True
+
+    p = fsub.add_parser("info", help="DOF counts, slots, grid, interface conformity")
+    _level_arg(p)
+    p.add_argument("--json", action="store_true", help="print JSON instead of a table")
+    p.set_defaults(func=_cmd_info)
+
+    p = fsub.add_parser("modes", help="lowest elastic modes of the disk, the blade or the disk–one-blade")
+    _level_arg(p)
+    p.add_argument("--component", default="disk", choices=["disk", "blade", "d1b"],
+                   help="disk (free), blade (free) or d1b (disk + blade in slot 1, fully bonded)")
+    p.add_argument("--n", type=int, default=10, help="number of elastic modes (default: %(default)s)")
+    p.add_argument("--calibrate", action="store_true",
+                   help="first set the disk modulus so its first mode is 1090.6 Hz (paper Table 1)")
+    p.add_argument("--json", action="store_true", help="print JSON instead of a table")
+    p.set_defaults(func=_cmd_modes)
+
+    p = fsub.add_parser("plot", help="mesh picture with contact grids and measurement nodes")
+    _level_arg(p)
+    p.add_argument("--out", required=True, help="output image, e.g. mesh.png")
+    p.set_defaults(func=_cmd_plot)
+
+
+def _parse_grid(text: str | None):
+    if text is None:
+        return None
+    try:
+        rows, cols = (int(v) for v in text.lower().split("x"))
+    except ValueError:
+        raise ValueError(f"--grid must look like ROWSxCOLS, e.g. 7x31; got {text!r}") from None
+    return rows, cols
+
+
+def build_model(level: str = "default", grid=None, calibrate: bool = False, verbose: bool = True):
+    """Build (and optionally calibrate) the academic bladed disk."""
+    from rom.academic import AcademicParams, build_bladed_disk
+    from rom.calibration import calibrate_bladed_disk
+
+    kw = {"level": level}
+    if grid is not None:
+        kw["grid"] = grid
+    params = AcademicParams(**kw)
+    with step(f"building the academic bladed disk (level {level}, grid {params.grid[0]}×{params.grid[1]})", verbose):
+        bd = build_bladed_disk(params)
+    if calibrate:
+        with step("calibrating the disk modulus to 1090.6 Hz (Table 1)", verbose):
+            bd = calibrate_bladed_disk(bd, disk_target_hz=TABLE1_HZ[0])
+    return bd
+
+
+def fe_info(bd) -> dict:
+    """The ``fe info`` JSON object."""
+    return {
+        "disk": {"n_dof": bd.disk.n_dof, "n_nodes": bd.disk.n_nodes, "n_slots": bd.n_slots,
+                 "grid": list(bd.params.grid), "n_elements": int(bd.disk.meta["n_elements"])},
+        "blade": {"n_dof": bd.blade.n_dof, "n_nodes": bd.blade.n_nodes, "n_elements": int(bd.blade.meta["n_elements"])},
+        "max_interface_gap_m": max(bd.interface_gap(s) for s in range(1, bd.n_slots + 1)),
+        "level": bd.params.level,
+        "disk_E_pa": float(bd.disk.meta["E"]),
+        "blade_E_pa": float(bd.blade.meta["E"]),
+    }
+
+
+def fe_modes(bd, component: str, n: int) -> dict:
+    """The ``fe modes`` JSON object (elastic modes only; nodal diameters for the disk)."""
+    from rom.contact import ContactPattern
+    from rom.fe_assembly import assemble_fe
+    from rom.solver import nodal_diameters, solve_modes
+
+    if not (isinstance(n, int) and 1 <= n <= 200):
+        raise ValueError(f"--n must be an integer in 1..200, got {n}")
+    if component == "d1b":
+        asm = assemble_fe(bd, {1: ContactPattern.full(bd.params.grid)})
+        K, M = asm.K, asm.M
+    else:
+        comp = getattr(bd, component)
+        K, M = comp.K, comp.M
+    sol = solve_modes(K, M, n)
+    out = {"component": component, "frequencies_hz": sol.frequencies_hz.tolist(), "n_rigid": sol.n_rigid,
+           "n_dof": int(K.shape[0])}
+    if component == "disk":
+        out["nodal_diameters"] = nodal_diameters(sol.shapes[3 * bd.disk.node_set("meas") + 2]).tolist()
+    return out
+
+
+def _cmd_info(args) -> int:
+    bd = build_model(args.level, _parse_grid(args.grid), verbose=not args.json)
+    info = fe_info(bd)
+    if args.json:
+        print_json(info)
+        return 0
+    p = bd.params
+    print(format_table(["component", "nodes", "DOF", "hex20 elements"], [
+        ["disk", f"{info['disk']['n_nodes']:,}", f"{info['disk']['n_dof']:,}", f"{info['disk']['n_elements']:,}"],
+        ["blade", f"{info['blade']['n_nodes']:,}", f"{info['blade']['n_dof']:,}", f"{info['blade']['n_elements']:,}"],
+    ]))
+    print(f"\nslots: {bd.n_slots}, contact grid per flank: {p.grid[0]}×{p.grid[1]} "
+          f"({2 * 3 * p.grid[0] * p.grid[1]} interface DOFs per slot)")
+    print(f"disk Ø{2e3 * p.disk_outer_radius:.0f} mm × {1e3 * p.disk_thickness:.1f} mm, bore Ø{2e3 * p.bore_radius:.0f} mm; "
+          f"blade length {1e3 * p.blade_length:.1f} mm, assembled Ø{2e3 * p.blade_tip_radius:.0f} mm")
+    print(f"largest disk/blade interface gap: {info['max_interface_gap_m']:.2e} m")
+    return 0
+
+
+def _cmd_modes(args) -> int:
+    bd = build_model(args.level, _parse_grid(args.grid), calibrate=args.calibrate, verbose=not args.json)
+    with step(f"solving {args.n} modes of the {args.component}", not args.json):
+        out = fe_modes(bd, args.component, args.n)
+    if args.json:
+        print_json(out)
+        return 0
+    f = out["frequencies_hz"]
+    if args.component == "disk":
+        rows = [[k + 1, fk, out["nodal_diameters"][k]] for k, fk in enumerate(f)]
+        print(format_table(["mode", "frequency (Hz)", "ND"], rows))
+    else:
+        print(format_table(["mode", "frequency (Hz)"], [[k + 1, fk] for k, fk in enumerate(f)]))
+    print(f"\n{out['n_rigid']} rigid-body modes reported apart; {out['n_dof']:,} DOF")
+    return 0
+
+
+def _cmd_plot(args) -> int:
+    from rom.plots import plot_mesh
+
+    bd = build_model(args.level, _parse_grid(args.grid))
+    with step("drawing the mesh"):
+        fig = plot_mesh(bd)
+        path = atomic_savefig(fig, args.out)
+    print(f"wrote {path}")
+    return 0
+
+
+def table1_rows(bd, n: int = 12) -> list[list]:
+    """Free-disk modes (one per ND pair) beside the paper's Table 1."""
+    from rom.solver import nodal_diameters, solve_modes
+
+    sol = solve_modes(bd.disk.K, bd.disk.M, n)
+    nd = nodal_diameters(sol.shapes[3 * bd.disk.node_set("meas") + 2])
+    f = sol.frequencies_hz
+    keep = [0] + [i for i in range(1, f.size) if f[i] / f[i - 1] - 1 > 1e-4]
+    return [[k + 1, TABLE1_HZ[k], float(f[i]), int(nd[i]), 100 * (f[i] / TABLE1_HZ[k] - 1)]
+            for k, i in enumerate(keep[: len(TABLE1_HZ)])]
+
+
