@@ -120,7 +120,8 @@ def _cmd_info(args) -> int:
     ]))
     print(f"\nslots: {bd.n_slots}, contact grid per flank: {p.grid[0]}×{p.grid[1]} "
           f"({2 * 3 * p.grid[0] * p.grid[1]} interface DOFs per slot)")
-    print(f"disk Ø{2e3 * p.disk_outer_radius:.0f} mm × {1e3 * p.disk_thickness:.1f} mm, bore Ø{2e3 * p.bore_radius:.0f} mm; "
+    print(f"disk Ø{2e3 * p.disk_outer_radius:.0f} mm × {1e3 * p.disk_thickness:.1f} mm, "
+          f"bore Ø{2e3 * p.bore_radius:.0f} mm; "
           f"blade length {1e3 * p.blade_length:.1f} mm, assembled Ø{2e3 * p.blade_tip_radius:.0f} mm")
     print(f"largest disk/blade interface gap: {info['max_interface_gap_m']:.2e} m")
     return 0

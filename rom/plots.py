@@ -54,7 +54,8 @@ def plot_mesh(bd: BladedDisk, fig: Figure | None = None, slot: int = 1) -> Figur
         ax.plot(P[:, 0], P[:, 1], "^", color="k", ms=5, label="disk measurement (z)")
         for s in range(1, bd.n_slots + 1):
             P = bd.placed_blade_coords(s)[blade.node_set("meas")] * 1e3
-            ax.plot(P[:, 0], P[:, 1], "*", color="tab:orange", ms=7, label="blade measurement (out of plane)" if s == 1 else None)
+            label = "blade measurement (out of plane)" if s == 1 else None
+            ax.plot(P[:, 0], P[:, 1], "*", color="tab:orange", ms=7, label=label)
         ax.set_aspect("equal")
         ax.set_xlabel("x (mm)")
         ax.set_ylabel("y (mm)")
