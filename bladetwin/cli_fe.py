@@ -4,11 +4,14 @@ from __future__ import annotations
 
 import argparse
 
+import numpy as np
+
 from .util import atomic_savefig, format_table, print_json, step
 
 __all__ = ["register", "build_model", "fe_info", "fe_modes"]
 
 TABLE1_HZ = [1090.6, 1971.1, 2638.1, 3647.6, 4421.5, 5747.6, 5947.9]
+TABLE1_ND = [2, 0, 3, 1, 4, 2, 0]
 
 
 def _level_arg(p: argparse.ArgumentParser) -> None:
@@ -104,6 +107,13 @@ def fe_modes(bd, component: str, n: int) -> dict:
            "n_dof": int(K.shape[0])}
     if component == "disk":
         out["nodal_diameters"] = nodal_diameters(sol.shapes[3 * bd.disk.node_set("meas") + 2]).tolist()
+    if component == "d1b":
+        # Character of each mode: share of kinetic energy in the blade, and the disk's dominant harmonic.
+        full = asm.Z @ sol.shapes
+        nd = bd.disk.n_dof
+        blade_ke = np.einsum("ij,ij->j", full[nd:], bd.blade.M @ full[nd:])
+        out["blade_energy_fraction"] = (blade_ke / np.einsum("ij,ij->j", sol.shapes, M @ sol.shapes)).tolist()
+        out["disk_nodal_diameters"] = nodal_diameters(full[3 * bd.disk.node_set("meas") + 2]).tolist()
     return out
 
 
@@ -155,15 +165,24 @@ def _cmd_plot(args) -> int:
     return 0
 
 
-def table1_rows(bd, n: int = 12) -> list[list]:
-    """Free-disk modes (one per ND pair) beside the paper's Table 1."""
+def table1_rows(bd, n: int = 26) -> list[list]:
+    """Free-disk modes beside the paper's Table 1, paired by nodal diameter (k-th family of each ND).
+
+    Rows: [mode, Table 1 Hz, Table 1 ND, model Hz or None, model ND, difference %].
+    """
     from rom.solver import nodal_diameters, solve_modes
 
     sol = solve_modes(bd.disk.K, bd.disk.M, n)
     nd = nodal_diameters(sol.shapes[3 * bd.disk.node_set("meas") + 2])
     f = sol.frequencies_hz
     keep = [0] + [i for i in range(1, f.size) if f[i] / f[i - 1] - 1 > 1e-4]
-    return [[k + 1, TABLE1_HZ[k], float(f[i]), int(nd[i]), 100 * (f[i] / TABLE1_HZ[k] - 1)]
-            for k, i in enumerate(keep[: len(TABLE1_HZ)])]
-
-
+    used: set[int] = set()
+    rows = []
+    for k, (ft, ndt) in enumerate(zip(TABLE1_HZ, TABLE1_ND, strict=True)):
+        match = next((i for i in keep if nd[i] == ndt and i not in used), None)
+        if match is None:
+            rows.append([k + 1, ft, ndt, "—", "—", "—"])
+            continue
+        used.add(match)
+        rows.append([k + 1, ft, ndt, float(f[match]), int(nd[match]), 100 * (f[match] / ft - 1)])
+    return rows

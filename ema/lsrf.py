@@ -103,6 +103,7 @@ def lsrf(
     orders: Iterable[int] | None = None,
     normalize: bool = True,
     progress: bool = False,
+    coefficients: str = "real",
 ) -> PoleSet:
     """Estimate poles with the LSRF method for a series of model orders.
 
@@ -120,6 +121,11 @@ def lsrf(
         Scale each FRF to unit RMS over the band (equal weight per FRF).
     progress : bool
         Show a tqdm progress bar on stderr.
+    coefficients : {"real", "complex"}
+        "real" (default): real polynomials in ``s = j omega``; the basis is orthonormal on the lines
+        mirrored to negative frequencies, ``x = omega / omega_hi``, and poles come in conjugate pairs
+        (order n holds n/2 modes). "complex": complex coefficients in ``x`` centred on the band, each
+        pole once (order n holds n modes), suited to narrow local bands.
 
     Returns
     -------
@@ -127,6 +133,8 @@ def lsrf(
         Poles (rad/s, positive imaginary part, natural frequency within the band) per order, with the
         numerators at the pole (``N_f(x_r)``, proportional to the residues) as vectors.
     """
+    if coefficients not in ("real", "complex"):
+        raise ValueError(f"coefficients {coefficients!r}: expected 'real' or 'complex'")
     order_list = resolve_orders(max_order, orders)
     data = band_data(frf, band, per="frf" if normalize else "none")
     n_o, n_i, n_f = data.H.shape
@@ -136,9 +144,23 @@ def lsrf(
     P = n_max + 1
     w = 2 * np.pi * data.freq_hz
     w_lo, w_hi = 2 * np.pi * data.band_hz[0], 2 * np.pi * data.band_hz[1]
-    wc, wh = 0.5 * (w_lo + w_hi), 0.5 * (w_hi - w_lo)
-    x = (w - wc) / wh
-    Q, Hs = orthonormal_basis(x, n_max)
+    real = coefficients == "real"
+    if real:
+        # basis orthonormal on the symmetric lines {-w_k} U {w_k}: q_j has the parity of j and
+        # psi_j = j^j q_j(w / w_hi) is a real polynomial in s = j w
+        wc, wh = 0.0, w_hi
+        x = w / wh
+        Qfull, Hs = orthonormal_basis(np.concatenate([-x[::-1], x]), n_max)
+        Q = Qfull[n_f:]
+        m_points = 2 * n_f
+        jpow = 1j ** np.arange(P)
+        phase = (jpow.conj()[:, None] * jpow[None, :]).real  # Re j^(j - i): 0 for odd j - i, else +-1
+    else:
+        wc, wh = 0.5 * (w_lo + w_hi), 0.5 * (w_hi - w_lo)
+        x = (w - wc) / wh
+        Q, Hs = orthonormal_basis(x, n_max)
+        m_points = n_f
+        jpow = np.ones(P)
 
     # S_f = Q^T diag(h_f) Q for all f, in chunks (real BLAS on real and imaginary parts)
     S = np.empty((n_frf, P, P), dtype=np.complex128)
@@ -152,8 +174,14 @@ def lsrf(
         Si = (Q.T @ im).reshape(P, c, P).transpose(1, 0, 2)
         S[start : start + c] = Sr + 1j * Si
     T = Q.T @ (np.sum(np.abs(h) ** 2, axis=0)[:, None] * Q)
-
-    G = np.zeros((P, P), dtype=np.complex128)
+    if real:
+        # real unknowns: S_f <- Re(j^(j-i) S_f), numerator b_f = 2 S_f a, M = T' - 2 sum S_f^T S_f
+        jj = jpow.conj()[:, None] * jpow[None, :]
+        S = (S * jj[None]).real
+        T = T * phase
+        G = np.zeros((P, P))
+    else:
+        G = np.zeros((P, P), dtype=np.complex128)
     wanted = set(order_list)
     out_order, out_pole, out_vec = [], [], []
     f_lo, f_hi = data.band_hz
@@ -164,14 +192,15 @@ def lsrf(
         n = row
         if n not in wanted:
             continue
-        M = T[: n + 1, : n + 1] - G[: n + 1, : n + 1]
+        M = T[: n + 1, : n + 1] - (2.0 if real else 1.0) * G[: n + 1, : n + 1]
         try:
             top = -np.linalg.solve(M[:n, :n], M[:n, n])
         except np.linalg.LinAlgError:
             top = -np.linalg.lstsq(M[:n, :n], M[:n, n], rcond=None)[0]
         a = np.append(top, 1.0)
+        c_coef = a * jpow[: n + 1]
         C = Hs[:n, :n].astype(np.complex128)
-        C[:, n - 1] -= Hs[n, n - 1] * top
+        C[:, n - 1] -= Hs[n, n - 1] * c_coef[:n] / c_coef[n]
         xr = np.linalg.eigvals(C)
         wr = wc + wh * xr
         lam = 1j * wr
@@ -179,8 +208,8 @@ def lsrf(
         keep = (wr.real > 0) & (fn >= f_lo) & (fn <= f_hi) & np.isfinite(lam)
         lam, xr = lam[keep], xr[keep]
         if lam.size:
-            b = S[:, : n + 1, : n + 1] @ a  # (n_frf, n+1) numerator coefficients
-            V = evaluate_basis(Hs, xr, n, n_f)  # (n_r, n+1)
+            b = S[:, : n + 1, : n + 1] @ a * (2.0 if real else 1.0)  # (n_frf, n+1) numerator coefficients
+            V = evaluate_basis(Hs, xr, n, m_points) * jpow[None, : n + 1]  # (n_r, n+1)
             num = (V @ b.T) / data.scale.reshape(-1)[None, :]  # (n_r, n_frf)
             out_order.append(np.full(lam.size, n))
             out_pole.append(lam)

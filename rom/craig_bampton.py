@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import logging
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -117,6 +117,19 @@ class CraigBamptonModel:
         M[:k, k:] = self.mu_be.T
         M[k:, k:] = self.mu_bb
         return M
+
+    def truncated(self, n_k: int) -> CraigBamptonModel:
+        """The same model keeping only the first ``n_k`` fixed-interface modes (exactly the CB model with n_k)."""
+        if not (isinstance(n_k, (int, np.integer)) and 1 <= n_k <= self.n_k):
+            raise ValueError(f"n_k must be an integer in 1..{self.n_k}, got {n_k!r}")
+        keep = np.r_[np.arange(n_k), self.n_k + np.arange(self.n_b)]
+        return replace(
+            self,
+            Lambda=self.Lambda[:n_k],
+            mu_be=self.mu_be[:, :n_k],
+            output_basis=self.output_basis[:, keep],
+            Phi=None if self.Phi is None else self.Phi[:, :n_k],
+        )
 
     def free_modes(self, n_modes: int) -> DenseModes:
         """Elastic modes of the reduced component with its boundary free (rigid-body modes dropped)."""

@@ -1,0 +1,380 @@
+"""Least-squares frequency-domain (LSFD) estimation of residues, mode shapes and synthesised FRFs.
+
+Receptance model of each FRF (viscous damping, complex residues, real residual terms)::
+
+    H(omega) = sum_r [ A_r / (j omega - lambda_r) + conj(A_r) / (j omega - conj(lambda_r)) ]
+               + L / (j omega)^2 + U
+
+and the mobility / accelerance model is that times ``(j omega)^k``. With the poles fixed the model is
+linear in Re A_r, Im A_r, L and U; all FRFs share one basis and are solved together. Optionally the poles
+are refined by nonlinear least squares on the same model (variable projection: residues eliminated,
+frequencies and damping ratios optimised), which removes the noise bias of the linearised pole
+estimators.
+"""
+
+from __future__ import annotations
+
+import logging
+
+import numpy as np
+
+from .frf import FRF_FORMS, FRFSet
+from .modal import ModalModel, modal_from_pole, pole_from_modal
+from .poles import band_data
+
+__all__ = ["lsfd", "refine_poles", "modal_model", "synthesize", "fit_quality", "dominance"]
+
+log = logging.getLogger(__name__)
+
+
+def _basis(poles: np.ndarray, freq_hz: np.ndarray, form: str, residuals: bool) -> np.ndarray:
+    """Real-coefficient basis, complex values, shape (n_freq, 2 n_modes [+ 2])."""
+    jw = 1j * 2 * np.pi * freq_hz[:, None]
+    a = 1.0 / (jw - poles[None, :])
+    b = 1.0 / (jw - poles.conj()[None, :])
+    cols = [a + b, 1j * (a - b)]
+    if residuals:
+        cols += [1.0 / jw**2, np.ones_like(jw)]
+    B = np.hstack(cols)
+    k = FRF_FORMS[form]
+    if k:
+        B = B * jw**k
+    return B
+
+
+def _solve(B: np.ndarray, Y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Real least squares ``B c = Y`` for complex B (n_freq, n_c) and Y (n_freq, n_y); returns c and fit."""
+    A = np.vstack([B.real, B.imag])
+    rhs = np.vstack([Y.real, Y.imag])
+    scale = np.linalg.norm(A, axis=0)
+    scale[scale == 0] = 1.0
+    c = np.linalg.lstsq(A / scale, rhs, rcond=None)[0] / scale[:, None]
+    return c, B @ c
+
+
+def lsfd(
+    frf: FRFSet,
+    poles: np.ndarray,
+    band: tuple[float, float] | None = None,
+    residuals: bool = True,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Residues and residual terms for given poles.
+
+    Parameters
+    ----------
+    frf : FRFSet
+        Measured FRFs, shape (n_outputs, n_inputs, n_freq).
+    poles : ndarray of complex, shape (n_modes,)
+        Continuous-time poles in rad/s (positive imaginary part).
+    band : (f_lo, f_hi) in Hz, optional
+        Lines used; default all finite lines (0 Hz is skipped when residuals are fitted).
+    residuals : bool
+        Fit the lower (``L/(j omega)^2``) and upper (``U``) residual terms.
+
+    Returns
+    -------
+    residues : ndarray of complex128, shape (n_modes, n_outputs, n_inputs)
+        Receptance residues ``A_r``.
+    lower, upper : ndarray of complex128, shape (n_outputs, n_inputs)
+        Residual terms (zeros when not fitted).
+    """
+    poles = np.asarray(poles, dtype=np.complex128).reshape(-1)
+    data = band_data(frf, band, per="none")
+    f = data.freq_hz
+    Y = data.H.reshape(frf.n_outputs * frf.n_inputs, -1).T
+    if residuals:
+        nz = f > 0
+        f, Y = f[nz], Y[nz]
+    B = _basis(poles, f, frf.form, residuals)
+    c, _ = _solve(B, Y)
+    n = poles.size
+    A = (c[:n] + 1j * c[n : 2 * n]).reshape(n, frf.n_outputs, frf.n_inputs)
+    shape = (frf.n_outputs, frf.n_inputs)
+    if residuals:
+        lower = c[2 * n].reshape(shape).astype(np.complex128)
+        upper = c[2 * n + 1].reshape(shape).astype(np.complex128)
+    else:
+        lower = np.zeros(shape, dtype=np.complex128)
+        upper = np.zeros(shape, dtype=np.complex128)
+    return A, lower, upper
+
+
+def _basis_derivatives(poles: np.ndarray, freq_hz: np.ndarray, form: str) -> tuple[np.ndarray, np.ndarray]:
+    """d(basis columns of mode r)/d(f_r, zeta_r): two arrays (n_freq, n_modes, 2) for the two columns."""
+    jw = 1j * 2 * np.pi * freq_hz[:, None]
+    wn = np.abs(poles)
+    z = -poles.real / wn
+    sq = np.sqrt(np.clip(1 - z**2, 1e-12, None))
+    dl_df = 2 * np.pi * (poles / wn)  # d lambda / d f (Hz)
+    dl_dz = -wn - 1j * wn * z / sq  # d lambda / d zeta
+    a = 1.0 / (jw - poles[None, :])
+    b = 1.0 / (jw - poles.conj()[None, :])
+    d1, d2 = [], []
+    for dl in (dl_df, dl_dz):
+        da = a**2 * dl[None, :]
+        db = b**2 * dl.conj()[None, :]
+        d1.append(da + db)
+        d2.append(1j * (da - db))
+    k = FRF_FORMS[form]
+    c1, c2 = np.stack(d1, axis=2), np.stack(d2, axis=2)
+    if k:
+        c1, c2 = c1 * (jw**k)[:, :, None], c2 * (jw**k)[:, :, None]
+    return c1, c2
+
+
+def refine_poles(
+    frf: FRFSet,
+    poles: np.ndarray,
+    band: tuple[float, float] | None = None,
+    residuals: bool = True,
+    max_iter: int = 30,
+    max_size: float = 4e7,
+) -> np.ndarray:
+    """Refine poles by nonlinear least squares on the LSFD model (variable projection).
+
+    Minimises ``sum_f || w_f (H_f - H_f_model) ||^2`` over the natural frequencies and damping ratios,
+    with the residues and residual terms solved linearly (Golub-Pereyra variable projection, Kaufman's
+    Jacobian, Levenberg-Marquardt steps) and every FRF weighted to unit RMS. The FRFs are first compressed
+    onto their dominant right singular directions (as many as model columns), which keeps the signal
+    subspace and drops only noise.
+
+    Parameters
+    ----------
+    frf : FRFSet
+    poles : ndarray of complex, shape (n_modes,)
+        Starting poles (rad/s).
+    band : (f_lo, f_hi) in Hz, optional
+    residuals : bool
+    max_iter : int
+        Levenberg-Marquardt iterations.
+    max_size : float
+        Skip the refinement (and log it) when the Jacobian would exceed this many entries.
+
+    Returns
+    -------
+    ndarray of complex128, shape (n_modes,)
+        Refined poles; the starting poles when the refinement does not reduce the misfit or moves a
+        frequency by more than 1 %.
+    """
+    poles = np.asarray(poles, dtype=np.complex128).reshape(-1)
+    n = poles.size
+    if n == 0:
+        return poles
+    data = band_data(frf, band, per="frf")
+    f = data.freq_hz
+    Y = data.H.reshape(frf.n_outputs * frf.n_inputs, -1).T
+    if residuals:
+        nz = f > 0
+        f, Y = f[nz], Y[nz]
+    n_c = 2 * n + (2 if residuals else 0)
+    Yr = np.vstack([Y.real, Y.imag])
+    if Yr.shape[1] > n_c:
+        _, _, Vt = np.linalg.svd(Yr, full_matrices=False)
+        Yr = Yr @ Vt[:n_c].T
+    k = Yr.shape[1]
+    if Yr.shape[0] * k * 2 * n > max_size:
+        log.info("pole refinement skipped: %d modes on %d lines is beyond max_size", n, f.size)
+        return poles
+
+    def evaluate(lam: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        B = _basis(lam, f, frf.form, residuals)
+        A = np.vstack([B.real, B.imag])
+        scale = np.linalg.norm(A, axis=0)
+        scale[scale == 0] = 1.0
+        Qa, Ra = np.linalg.qr(A / scale)
+        proj = Qa.T @ Yr
+        c = np.linalg.solve(Ra, proj) / scale[:, None] if np.all(np.abs(np.diag(Ra)) > 1e-14) else (
+            np.linalg.lstsq(A, Yr, rcond=None)[0]
+        )
+        r = Yr - Qa @ proj
+        return r, c, Qa
+
+    def jacobian(lam: np.ndarray, c: np.ndarray, Qa: np.ndarray) -> np.ndarray:
+        d1, d2 = _basis_derivatives(lam, f, frf.form)
+        J = np.empty((Yr.shape[0] * k, 2 * n))
+        for r in range(n):
+            for p in range(2):
+                dB = d1[:, r, p][:, None] * c[r][None, :] + d2[:, r, p][:, None] * c[n + r][None, :]
+                dBr = np.vstack([dB.real, dB.imag])
+                J[:, p * n + r] = -(dBr - Qa @ (Qa.T @ dBr)).ravel()
+        return J
+
+    fr, zr = modal_from_pole(poles)
+    zr = np.clip(zr, 1e-6, None)
+    lam = pole_from_modal(fr, zr)
+    r, c, Qa = evaluate(lam)
+    cost0 = cost = float(np.sum(r**2))
+    mu = 1e-3
+    for _ in range(max_iter):
+        J = jacobian(lam, c, Qa)
+        # scale parameters: frequencies relative to f, damping relative to zeta
+        D = np.concatenate([fr, zr])
+        Js = J * D[None, :]
+        g = Js.T @ r.ravel()
+        JtJ = Js.T @ Js
+        improved = False
+        for _ in range(10):
+            step = -np.linalg.solve(JtJ + mu * np.diag(np.diag(JtJ) + 1e-12), g)
+            fr_new = fr * (1 + step[:n])
+            zr_new = zr * np.exp(np.clip(step[n:], -1.0, 1.0))
+            lam_new = pole_from_modal(fr_new, zr_new)
+            r_new, c_new, Qa_new = evaluate(lam_new)
+            cost_new = float(np.sum(r_new**2))
+            if cost_new < cost:
+                improved = True
+                break
+            mu *= 10.0
+        if not improved:
+            break
+        rel = (cost - cost_new) / max(cost, 1e-300)
+        fr, zr, lam, r, c, Qa, cost = fr_new, zr_new, lam_new, r_new, c_new, Qa_new, cost_new
+        mu = max(mu / 10.0, 1e-9)
+        if rel < 1e-10:
+            break
+    f0, _ = modal_from_pole(poles)
+    if not cost < cost0:
+        return poles
+    if np.any(np.abs(fr - f0) / f0 > 0.01):
+        log.warning("pole refinement moved a mode by more than 1 %%; keeping the estimator's poles")
+        return poles
+    return lam
+
+
+def _shapes(A: np.ndarray, poles: np.ndarray, frf: FRFSet) -> tuple[np.ndarray, tuple, str]:
+    """Mode shapes from residue matrices (rank-one approximation), mass-scaled when a driving point exists."""
+    n, n_o, n_i = A.shape
+    on_outputs = n_o >= n_i
+    dofs = frf.outputs if on_outputs else frf.inputs
+    drive = [(o, i) for o, do in enumerate(frf.outputs) for i, di in enumerate(frf.inputs) if do == di]
+    phi = np.zeros((len(dofs), n), dtype=np.complex128)
+    scaling = "mass" if drive else "unit"
+    for r in range(n):
+        U, _, Vh = np.linalg.svd(A[r])
+        v = U[:, 0] if on_outputs else Vh[0].conj()
+        if drive:
+            # A_r = phi phi^T / (2 j omega_d): phi_j = 2 j omega_d A_jd / phi_d
+            o, i = drive[0]
+            wd = poles[r].imag
+            col = A[r][:, i] if on_outputs else A[r][o, :]
+            phid = np.sqrt(2j * wd * A[r][o, i])
+            v = 2j * wd * col / phid if abs(phid) > 0 else col
+            if not np.all(np.isfinite(v)):
+                v = U[:, 0]
+        else:
+            k = int(np.argmax(np.abs(v)))
+            v = v * np.exp(-1j * np.angle(v[k])) / max(np.linalg.norm(v), 1e-300)
+        phi[:, r] = v
+    return phi, dofs, scaling
+
+
+def modal_model(
+    frf: FRFSet,
+    poles: np.ndarray,
+    band: tuple[float, float] | None = None,
+    quality: np.ndarray | None = None,
+    method: str = "",
+    residuals: bool = True,
+) -> ModalModel:
+    """Fit residues (LSFD) for given poles and return the :class:`ModalModel`.
+
+    Shapes live on the outputs when ``n_outputs >= n_inputs`` (roving response) and on the inputs
+    otherwise (roving hammer, by reciprocity): the dominant singular vector of each residue matrix.
+    With a driving point (an output label equal to an input label) they are scaled to unit modal mass
+    (``A_r = phi phi^T / (2 j omega_d)``), otherwise to unit norm with the largest component real.
+    """
+    poles = np.asarray(poles, dtype=np.complex128).reshape(-1)
+    srt = np.argsort(np.abs(poles), kind="stable")
+    poles = poles[srt]
+    if quality is not None:
+        quality = np.asarray(quality, dtype=float).reshape(-1)[srt]
+    A, lower, upper = lsfd(frf, poles, band, residuals)
+    phi, dofs, scaling = _shapes(A, poles, frf)
+    f, z = modal_from_pole(poles)
+    data_band = band_data(frf, band, per="none").band_hz
+    return ModalModel(
+        frequency_hz=f, damping_ratio=z, shapes=phi, dofs=dofs, quality=quality, residues=A,
+        lower_residual=lower, upper_residual=upper, outputs=frf.outputs, inputs=frf.inputs, form=frf.form,
+        band_hz=data_band, method=method, scaling=scaling,
+    )
+
+
+def synthesize(model: ModalModel, freq_hz: np.ndarray, form: str | None = None) -> FRFSet:
+    """FRFs of a modal model with residues, on a frequency axis.
+
+    Parameters
+    ----------
+    model : ModalModel
+        Must carry residues (from :func:`modal_model`).
+    freq_hz : ndarray, shape (n_freq,)
+    form : str, optional
+        Output form; default the model's.
+
+    Returns
+    -------
+    FRFSet
+        Shape (n_outputs, n_inputs, n_freq); NaN at 0 Hz when residual terms are present.
+    """
+    if model.residues is None:
+        raise ValueError("synthesize: the modal model has no residues (fit it with ema.lsfd.modal_model)")
+    form = form or model.form
+    freq = np.asarray(freq_hz, dtype=np.float64)
+    jw = 1j * 2 * np.pi * freq
+    lam = model.poles
+    A = model.residues
+    H = np.einsum("rab,rf->abf", A, 1.0 / (jw[None, :] - lam[:, None]))
+    H += np.einsum("rab,rf->abf", A.conj(), 1.0 / (jw[None, :] - lam.conj()[:, None]))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        if model.lower_residual is not None and np.any(model.lower_residual != 0):
+            H += model.lower_residual[:, :, None] * np.where(jw != 0, 1.0 / np.where(jw != 0, jw, 1) ** 2, np.nan)
+        if model.upper_residual is not None:
+            H += model.upper_residual[:, :, None]
+    k = FRF_FORMS[form]
+    if k:
+        H = H * jw**k
+    return FRFSet(freq_hz=freq, H=H, outputs=model.outputs, inputs=model.inputs, form=form)
+
+
+def fit_quality(frf: FRFSet, model: ModalModel, band: tuple[float, float] | None = None) -> np.ndarray:
+    """Fit quality of each FRF: ``1 - ||H - H_syn||^2 / ||H||^2`` over the band (1 = perfect).
+
+    Returns
+    -------
+    ndarray, shape (n_outputs, n_inputs)
+    """
+    band = band or model.band_hz
+    data = band_data(frf.with_form(model.form) if frf.form != model.form else frf, band, per="none")
+    syn = synthesize(model, data.freq_hz).H
+    ok = np.all(np.isfinite(syn), axis=(0, 1))
+    H, S = data.H[:, :, ok], syn[:, :, ok]
+    num = np.sum(np.abs(H - S) ** 2, axis=2)
+    den = np.sum(np.abs(H) ** 2, axis=2)
+    return 1.0 - num / np.where(den > 0, den, 1.0)
+
+
+def dominance(frf: FRFSet, model: ModalModel) -> np.ndarray:
+    """How much each mode dominates the measured response at its own natural frequency.
+
+    ``d_r = max_f |H_f,r(f_r)| / |H_f(f_r)|``: the magnitude of mode r's own term in the synthesis,
+    relative to the measured FRF, at the line nearest to ``f_r``, maximised over the FRFs. A physical
+    resonance gives about 1; a computational pole that only patches the fit of a neighbour gives much
+    less.
+
+    Returns
+    -------
+    ndarray, shape (n_modes,)
+    """
+    if model.residues is None:
+        raise ValueError("dominance: the modal model has no residues")
+    data = frf.with_form(model.form) if frf.form != model.form else frf
+    out = np.zeros(model.n_modes)
+    valid = data.valid_lines()
+    for r in range(model.n_modes):
+        i = int(np.argmin(np.where(valid, np.abs(data.freq_hz - model.frequency_hz[r]), np.inf)))
+        jw = 1j * 2 * np.pi * data.freq_hz[i]
+        lam = model.poles[r]
+        A = model.residues[r]
+        term = A / (jw - lam) + A.conj() / (jw - np.conj(lam))
+        term = term * jw ** FRF_FORMS[model.form]
+        meas = np.abs(data.H[:, :, i])
+        out[r] = float(np.max(np.abs(term) / np.where(meas > 0, meas, np.inf)))
+    return out

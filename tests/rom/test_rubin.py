@@ -1,0 +1,97 @@
+"""Rubin free-interface reduction of the blade (Eqs. 7–17) and blade mistuning (Eq. 19)."""
+
+import numpy as np
+import pytest
+import rom_models
+import scipy.linalg as sla
+
+from rom.rubin import blade_boundary_dofs, rubin
+from rom.solver import solve_modes
+
+
+def test_free_blade_first_20_modes_within_0p3_percent_and_never_below_fe():
+    bd = rom_models.bladed_disk()
+    fe = solve_modes(bd.blade.K, bd.blade.M, 20).frequencies_hz
+    rom = rom_models.blade().free_modes(20).frequencies_hz
+    rel = rom / fe - 1
+    assert np.abs(rel).max() <= 3e-3
+    assert rel.min() >= -1e-8
+
+
+def test_residual_flexibility_equals_the_truncated_modal_sum_of_all_fe_modes():
+    """A Ψ_r (Eq. 13's inverse) = Σ_{i > m} φ_i φ_iᵀ / ω_i² at the boundary, from a dense FE eigen-decomposition."""
+    bd = rom_models.bladed_disk()
+    b = rom_models.blade()
+    w2, V = sla.eigh(bd.blade.K.toarray(), bd.blade.M.toarray())
+    elastic = np.arange(6, w2.size)
+    dofs, _ = blade_boundary_dofs(bd.blade)
+    Vb = V[np.ix_(dofs, elastic[b.m :])]
+    G = (Vb / w2[elastic[b.m :]]) @ Vb.T
+    np.testing.assert_allclose(b.G_bb, G, atol=1e-6 * np.abs(G).max())
+    np.testing.assert_allclose(b.omega2_tuned, w2[elastic[: b.m]], rtol=1e-9)
+    # Eq. 10: Ψ_rᵀ K Ψ_r equals A Ψ_r (the modal sum is K-orthonormal).
+    np.testing.assert_allclose(b.G_rb, b.G_bb, atol=1e-6 * np.abs(G).max())
+
+
+def test_reconstructed_super_element_modes_match_fe_shapes():
+    bd = rom_models.bladed_disk()
+    b = rom_models.blade()
+    fe = solve_modes(bd.blade.K, bd.blade.M, 10)
+    dm = b.free_modes(10)
+    X = b.reconstruct(dm.shapes)
+    mac = (np.abs(np.sum(X * (bd.blade.M @ fe.shapes), axis=0))) ** 2 / (
+        np.sum(X * (bd.blade.M @ X), axis=0) * np.sum(fe.shapes * (bd.blade.M @ fe.shapes), axis=0)
+    )
+    assert mac.min() >= 1 - 1e-8
+
+
+def test_mistuning_scales_free_interface_eigenvalue_i_by_exactly_one_plus_delta_i():
+    b = rom_models.blade()
+    rng = np.random.default_rng(4)
+    delta = rng.uniform(-0.02, 0.02, 12)
+    w2 = (2 * np.pi * b.with_delta(delta).free_modes(12).frequencies_hz) ** 2
+    w2_0 = (2 * np.pi * b.free_modes(12).frequencies_hz) ** 2
+    # The ±2 % perturbations may reorder close modes; compare sorted values.
+    np.testing.assert_allclose(w2, np.sort(w2_0 * (1 + delta)), rtol=1e-8)
+    np.testing.assert_array_equal(b.with_delta(delta).omega2, b.omega2_tuned * (1 + np.r_[delta, np.zeros(b.m - 12)]))
+
+
+def test_zero_delta_reproduces_the_tuned_model_exactly():
+    b = rom_models.blade()
+    se0, se1 = b.superelement(), b.with_delta(np.zeros(b.m)).superelement()
+    np.testing.assert_array_equal(se0.K, se1.K)
+    np.testing.assert_array_equal(se0.M, se1.M)
+    np.testing.assert_array_equal(b.with_delta(0.0).superelement().K, se0.K)
+
+
+def test_force_free_elimination_keeps_only_the_chosen_boundary():
+    b = rom_models.blade()
+    keep = np.zeros(b.n_b, bool)
+    keep[: b.n_interface // 2] = True
+    keep[b.accessory_index] = True
+    se = b.superelement(keep)
+    assert se.n == b.n_r + b.m + keep.sum()
+    np.testing.assert_array_equal(se.boundary_index, np.flatnonzero(keep))
+    # Still a Rayleigh–Ritz model containing the free modes: its free spectrum starts with the FE modes.
+    from rom.modal import dense_modes
+
+    f = dense_modes(se.K, se.M, 5).frequencies_hz
+    np.testing.assert_allclose(f, b.free_modes(5).frequencies_hz, rtol=1e-7)
+
+
+def test_bad_delta_raises():
+    b = rom_models.blade()
+    with pytest.raises(ValueError, match="finite"):
+        b.with_delta([0.01, np.nan])
+    with pytest.raises(ValueError, match=f"1..{b.m} entries"):
+        b.with_delta(np.zeros(b.m + 1))
+    with pytest.raises(ValueError, match="> -1"):
+        b.with_delta([-1.0])
+
+
+def test_bad_inputs_raise():
+    bd = rom_models.bladed_disk()
+    with pytest.raises(ValueError, match="duplicates"):
+        rubin(bd.blade, np.array([0, 0, 1]), 5)
+    with pytest.raises(ValueError, match="n_modes"):
+        rubin(bd.blade, np.arange(3), 0)
