@@ -165,7 +165,7 @@ def _cmd_plot(args) -> int:
     return 0
 
 
-def table1_rows(bd, n: int = 26) -> list[list]:
+def table1_rows(bd, n: int = 18) -> list[list]:
     """Free-disk modes beside the paper's Table 1, paired by nodal diameter (k-th family of each ND).
 
     Rows: [mode, Table 1 Hz, Table 1 ND, model Hz or None, model ND, difference %].

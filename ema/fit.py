@@ -16,7 +16,7 @@ from .lscf import lscf
 from .lsfd import dominance, fit_quality, modal_model, refine_poles
 from .lsrf import lsrf
 from .modal import ModalModel
-from .poles import PoleSet, band_data, merge_polesets
+from .poles import PoleSet, band_data, merge_polesets, single_thread_blas
 from .selection import PoleSelection, select_auto, select_near, select_picks
 from .stabilization import StabilityCriteria, StabilizationDiagram, stabilize
 
@@ -149,8 +149,8 @@ def fit(
     frequencies_hz: Sequence[float] | None = None,
     picks: Sequence[tuple[int, float]] | None = None,
     criteria: StabilityCriteria | None = None,
-    min_quality: float = 0.3,
-    min_dominance: float = 0.5,
+    min_quality: float = 0.15,
+    min_dominance: float = 0.7,
     n_bands: int = 1,
     refine: bool = True,
     progress: bool = False,
@@ -197,11 +197,24 @@ def fit(
         selection = select_near(diagram, frequencies_hz)
     else:
         selection = select_auto(diagram, min_quality=min_quality)
+    with single_thread_blas():
+        model, dom, dropped = _finish(frf, diagram, selection, min_dominance if picks is None and frequencies_hz is None
+                                      else 0.0, refine)
+    quality = fit_quality(frf, model) if model.n_modes else np.zeros((frf.n_outputs, frf.n_inputs))
+    log.info("%s: %d modes in %.6g-%.6g Hz", diagram.method, model.n_modes, *diagram.band_hz)
+    return EMAResult(diagram=diagram, selection=selection, model=model, quality=quality, dominance=dom,
+                     dropped_hz=tuple(sorted(dropped)))
+
+
+def _finish(
+    frf: FRFSet, diagram: StabilizationDiagram, selection: PoleSelection, min_dominance: float, refine: bool
+) -> tuple[ModalModel, np.ndarray, list[float]]:
+    """LSFD, dominance filter and optional refinement of a selection."""
     lam, qual = selection.pole, selection.quality
     dropped: list[float] = []
     model = modal_model(frf, lam, diagram.band_hz, quality=qual, method=diagram.method)
     dom = dominance(frf, model) if model.n_modes else np.zeros(0)
-    if picks is None and frequencies_hz is None and min_dominance > 0 and model.n_modes:
+    if min_dominance > 0 and model.n_modes:
         while model.n_modes and dom.min() < min_dominance:
             k = int(np.argmin(dom))
             dropped.append(float(model.frequency_hz[k]))
@@ -213,8 +226,5 @@ def fit(
         lam = refine_poles(frf, model.poles, diagram.band_hz)
         model = modal_model(frf, lam, diagram.band_hz, quality=model.quality, method=diagram.method)
         dom = dominance(frf, model)
-    quality = fit_quality(frf, model) if model.n_modes else np.zeros((frf.n_outputs, frf.n_inputs))
-    log.info("%s: %d modes in %.6g-%.6g Hz", diagram.method, model.n_modes, *diagram.band_hz)
-    return EMAResult(diagram=diagram, selection=selection, model=model, quality=quality, dominance=dom,
-                     dropped_hz=tuple(sorted(dropped)))
+    return model, dom, dropped
 

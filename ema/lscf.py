@@ -26,7 +26,7 @@ import scipy.linalg as sla
 from tqdm import tqdm
 
 from .frf import FRFSet
-from .poles import PoleSet, band_data, resolve_orders
+from .poles import PoleSet, band_data, resolve_orders, single_thread_blas
 
 __all__ = ["lscf"]
 
@@ -149,54 +149,55 @@ def lscf(
     wanted = set(order_list)
     out_order, out_pole, out_vec = [], [], []
     f_lo, f_hi = data.band_hz
-    bar = tqdm(total=len(order_list), desc="LSCF", unit="order", disable=not progress, leave=False)
-    for row in range(P):
-        Wr = W[row]
-        G += Wr.T @ Wr
-        p = row
-        if p not in wanted:
-            continue
-        c = (p + 1) * n_i
-        M = T[:c, :c] - G[:c, :c]
-        k = p * n_i
-        try:
-            top = -np.linalg.solve(M[:k, :k], M[:k, k:])
-        except np.linalg.LinAlgError:
-            top = -np.linalg.lstsq(M[:k, :k], M[:k, k:], rcond=None)[0]
-        alpha = np.vstack([top, np.eye(n_i)])  # (c, n_i)
-        if n_i == 1:
-            comp = np.zeros((p, p))
-            if p > 1:
-                comp[:-1, 1:] = np.eye(p - 1)
-            comp[-1, :] = -top[:, 0]
-            z = np.linalg.eigvals(comp)
-            lvec = np.ones((1, z.size), dtype=np.complex128)
-        else:
-            comp = np.zeros((k, k))
-            if p > 1:
-                comp[:-n_i, n_i:] = np.eye(k - n_i)
-            comp[-n_i:, :] = -top.T
-            z, V = np.linalg.eig(comp)
-            lvec = V[:n_i, :]
-        with np.errstate(divide="ignore", invalid="ignore"):
-            lam = np.log(z.astype(np.complex128)) / Ts
-        fn = np.abs(lam) / (2 * np.pi)
-        keep = (lam.imag > 0) & (fn >= f_lo) & (fn <= f_hi) & np.isfinite(lam)
-        lam, zk, lvec = lam[keep], z[keep], lvec[:, keep]
-        if lam.size:
-            # numerator coefficients theta_o = -R_p^-1 S_o alpha, then psi = B(z_r) l_r
-            Wa = W[: p + 1, :, :c] @ alpha  # (p+1, n_o, n_i)
-            theta = -sla.solve_triangular(L[: p + 1, : p + 1].T, Wa.reshape(p + 1, n_o * n_i), lower=False)
-            theta = theta.reshape(p + 1, n_o, n_i)
-            Zp = zk[None, :] ** np.arange(p + 1)[:, None]  # (p+1, n_r)
-            Bl = np.einsum("joi,ir,jr->or", theta, lvec, Zp)  # (n_o, n_r)
-            Bl = Bl / data.scale[:, None]
-            vec = (Bl[:, None, :] * lvec[None, :, :]).reshape(n_o * n_i, lam.size).T if n_i > 1 else Bl.T
-            out_order.append(np.full(lam.size, p))
-            out_pole.append(lam)
-            out_vec.append(vec)
-        bar.update(1)
-    bar.close()
+    with single_thread_blas():
+        bar = tqdm(total=len(order_list), desc="LSCF", unit="order", disable=not progress, leave=False)
+        for row in range(P):
+            Wr = W[row]
+            G += Wr.T @ Wr
+            p = row
+            if p not in wanted:
+                continue
+            c = (p + 1) * n_i
+            M = T[:c, :c] - G[:c, :c]
+            k = p * n_i
+            try:
+                top = -np.linalg.solve(M[:k, :k], M[:k, k:])
+            except np.linalg.LinAlgError:
+                top = -np.linalg.lstsq(M[:k, :k], M[:k, k:], rcond=None)[0]
+            alpha = np.vstack([top, np.eye(n_i)])  # (c, n_i)
+            if n_i == 1:
+                comp = np.zeros((p, p))
+                if p > 1:
+                    comp[:-1, 1:] = np.eye(p - 1)
+                comp[-1, :] = -top[:, 0]
+                z = np.linalg.eigvals(comp)
+                lvec = np.ones((1, z.size), dtype=np.complex128)
+            else:
+                comp = np.zeros((k, k))
+                if p > 1:
+                    comp[:-n_i, n_i:] = np.eye(k - n_i)
+                comp[-n_i:, :] = -top.T
+                z, V = np.linalg.eig(comp)
+                lvec = V[:n_i, :]
+            with np.errstate(divide="ignore", invalid="ignore"):
+                lam = np.log(z.astype(np.complex128)) / Ts
+            fn = np.abs(lam) / (2 * np.pi)
+            keep = (lam.imag > 0) & (fn >= f_lo) & (fn <= f_hi) & np.isfinite(lam)
+            lam, zk, lvec = lam[keep], z[keep], lvec[:, keep]
+            if lam.size:
+                # numerator coefficients theta_o = -R_p^-1 S_o alpha, then psi = B(z_r) l_r
+                Wa = W[: p + 1, :, :c] @ alpha  # (p+1, n_o, n_i)
+                theta = -sla.solve_triangular(L[: p + 1, : p + 1].T, Wa.reshape(p + 1, n_o * n_i), lower=False)
+                theta = theta.reshape(p + 1, n_o, n_i)
+                Zp = zk[None, :] ** np.arange(p + 1)[:, None]  # (p+1, n_r)
+                Bl = np.einsum("joi,ir,jr->or", theta, lvec, Zp)  # (n_o, n_r)
+                Bl = Bl / data.scale[:, None]
+                vec = (Bl[:, None, :] * lvec[None, :, :]).reshape(n_o * n_i, lam.size).T if n_i > 1 else Bl.T
+                out_order.append(np.full(lam.size, p))
+                out_pole.append(lam)
+                out_vec.append(vec)
+            bar.update(1)
+        bar.close()
     n_vec = n_o * n_i
     return PoleSet(
         method="lscf",

@@ -32,7 +32,7 @@ import numpy as np
 from tqdm import tqdm
 
 from .frf import FRFSet
-from .poles import PoleSet, band_data, resolve_orders
+from .poles import PoleSet, band_data, resolve_orders, single_thread_blas
 
 __all__ = ["lsrf", "orthonormal_basis", "evaluate_basis"]
 
@@ -185,37 +185,38 @@ def lsrf(
     wanted = set(order_list)
     out_order, out_pole, out_vec = [], [], []
     f_lo, f_hi = data.band_hz
-    bar = tqdm(total=len(order_list), desc="LSRF", unit="order", disable=not progress, leave=False)
-    for row in range(P):
-        Sr = S[:, row, :]
-        G += Sr.conj().T @ Sr
-        n = row
-        if n not in wanted:
-            continue
-        M = T[: n + 1, : n + 1] - (2.0 if real else 1.0) * G[: n + 1, : n + 1]
-        try:
-            top = -np.linalg.solve(M[:n, :n], M[:n, n])
-        except np.linalg.LinAlgError:
-            top = -np.linalg.lstsq(M[:n, :n], M[:n, n], rcond=None)[0]
-        a = np.append(top, 1.0)
-        c_coef = a * jpow[: n + 1]
-        C = Hs[:n, :n].astype(np.complex128)
-        C[:, n - 1] -= Hs[n, n - 1] * c_coef[:n] / c_coef[n]
-        xr = np.linalg.eigvals(C)
-        wr = wc + wh * xr
-        lam = 1j * wr
-        fn = np.abs(lam) / (2 * np.pi)
-        keep = (wr.real > 0) & (fn >= f_lo) & (fn <= f_hi) & np.isfinite(lam)
-        lam, xr = lam[keep], xr[keep]
-        if lam.size:
-            b = S[:, : n + 1, : n + 1] @ a * (2.0 if real else 1.0)  # (n_frf, n+1) numerator coefficients
-            V = evaluate_basis(Hs, xr, n, m_points) * jpow[None, : n + 1]  # (n_r, n+1)
-            num = (V @ b.T) / data.scale.reshape(-1)[None, :]  # (n_r, n_frf)
-            out_order.append(np.full(lam.size, n))
-            out_pole.append(lam)
-            out_vec.append(num)
-        bar.update(1)
-    bar.close()
+    with single_thread_blas():
+        bar = tqdm(total=len(order_list), desc="LSRF", unit="order", disable=not progress, leave=False)
+        for row in range(P):
+            Sr = S[:, row, :]
+            G += Sr.conj().T @ Sr
+            n = row
+            if n not in wanted:
+                continue
+            M = T[: n + 1, : n + 1] - (2.0 if real else 1.0) * G[: n + 1, : n + 1]
+            try:
+                top = -np.linalg.solve(M[:n, :n], M[:n, n])
+            except np.linalg.LinAlgError:
+                top = -np.linalg.lstsq(M[:n, :n], M[:n, n], rcond=None)[0]
+            a = np.append(top, 1.0)
+            c_coef = a * jpow[: n + 1]
+            C = Hs[:n, :n].astype(np.complex128)
+            C[:, n - 1] -= Hs[n, n - 1] * c_coef[:n] / c_coef[n]
+            xr = np.linalg.eigvals(C)
+            wr = wc + wh * xr
+            lam = 1j * wr
+            fn = np.abs(lam) / (2 * np.pi)
+            keep = (wr.real > 0) & (fn >= f_lo) & (fn <= f_hi) & np.isfinite(lam)
+            lam, xr = lam[keep], xr[keep]
+            if lam.size:
+                b = S[:, : n + 1, : n + 1] @ a * (2.0 if real else 1.0)  # (n_frf, n+1) numerator coefficients
+                V = evaluate_basis(Hs, xr, n, m_points) * jpow[None, : n + 1]  # (n_r, n+1)
+                num = (V @ b.T) / data.scale.reshape(-1)[None, :]  # (n_r, n_frf)
+                out_order.append(np.full(lam.size, n))
+                out_pole.append(lam)
+                out_vec.append(num)
+            bar.update(1)
+        bar.close()
     return PoleSet(
         method="lsrf",
         band_hz=data.band_hz,

@@ -146,7 +146,8 @@ def _representative(diagram: StabilizationDiagram, members: np.ndarray) -> tuple
     top = members[orders >= np.median(orders)]
     f = float(np.median(diagram.frequency_hz[top]))
     z = float(np.median(diagram.damping_ratio[top]))
-    k = top[np.argmin(np.abs(diagram.frequency_hz[top] - f) / f + np.abs(diagram.damping_ratio[top] - z) / max(z, 1e-9))]
+    dev = np.abs(diagram.frequency_hz[top] - f) / f + np.abs(diagram.damping_ratio[top] - z) / max(z, 1e-9)
+    k = top[np.argmin(dev)]
     v = diagram.vector[k]
     V = diagram.vector[members]
     mac = np.abs(V.conj() @ v) ** 2 / np.maximum(np.sum(np.abs(V) ** 2, axis=1) * np.sum(np.abs(v) ** 2), 1e-300)
@@ -181,7 +182,7 @@ def _build(diagram: StabilizationDiagram, groups: list[np.ndarray], how: str) ->
 
 def select_auto(
     diagram: StabilizationDiagram,
-    min_quality: float = 0.3,
+    min_quality: float = 0.15,
     min_class: int = STABLE_FD,
     freq_tol: float | None = None,
     mac_min: float | None = None,

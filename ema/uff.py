@@ -119,7 +119,9 @@ def _field(dset: dict, key: str, path: Path, index: int) -> Any:
     return dset[key]
 
 
-def _frf_from_set(dset: dict, path: Path, index: int, form: str | None) -> tuple[DOF, DOF, np.ndarray, np.ndarray, str, str]:
+def _frf_from_set(
+    dset: dict, path: Path, index: int, form: str | None
+) -> tuple[DOF, DOF, np.ndarray, np.ndarray, str, str]:
     func_type = int(_field(dset, "func_type", path, index))
     if func_type != 4:
         name = FUNCTION_TYPES.get(func_type, "unknown")
