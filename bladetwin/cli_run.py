@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from .cli_fe import build_model, fe_info, fe_modes, table1_rows
+from .cli_fe import _level_arg, _parse_grid, build_model, fe_info, fe_modes, table1_rows
 from .util import atomic_savefig, atomic_write_text, format_table, step
 
 __all__ = ["register"]
@@ -22,8 +22,7 @@ def register(sub) -> None:
                        description="Run the main job. The identification pipeline is not built yet, so this runs "
                                    "the FE demo: model info, first modes, and a mesh picture.")
     p.add_argument("campaign", nargs="?", default=None, help="campaign folder (not used by the FE demo yet)")
-    p.add_argument("--level", default="default", choices=["coarse", "default", "fine"],
-                   help="mesh level (default: %(default)s)")
+    _level_arg(p)
     p.add_argument("--out", default="out/fe_demo", help="output folder (default: %(default)s)")
     p.set_defaults(func=_cmd_run)
 
@@ -46,7 +45,7 @@ def _cmd_run(args) -> int:
     print("bladetwin run: the identification pipeline is not built yet; running the FE demo on the "
           "embedded academic bladed-disk twin (model info, first modes, mesh picture).\n")
     out = Path(args.out)
-    bd = build_model(args.level, calibrate=True)
+    bd = build_model(args.level, _parse_grid(args.grid), calibrate=True)
     info = fe_info(bd)
     print(f"disk {info['disk']['n_dof']:,} DOF, blade {info['blade']['n_dof']:,} DOF, {bd.n_slots} slots, "
           f"grid {bd.params.grid[0]}×{bd.params.grid[1]}, interface gap {info['max_interface_gap_m']:.1e} m, "
