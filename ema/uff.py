@@ -508,7 +508,7 @@ def write_modes(path: str | os.PathLike, model: ModalModel, id1: str = "bladetwi
                 data_type=2, n_data_per_node=n_comp, load_case=1, mode_n=m + 1,
                 freq=float(model.frequency_hz[m]), modal_m=1.0,
                 modal_damp_vis=float(model.damping_ratio[m]), modal_damp_his=0.0,
-                node_nums=np.asarray(nodes, dtype=float), **kw,
+                node_nums=np.asarray(nodes, dtype=int), **kw,
             )
         )
     _atomic_write(path, dsets)

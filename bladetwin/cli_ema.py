@@ -1,0 +1,189 @@
+"""``bladetwin ema``: fit UFF FRFs (``ema fit``) and build campaign tables (``ema blades|disk|assembly DIR``)."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+
+__all__ = ["register"]
+
+
+def _add_fit_options(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--method", choices=("lscf", "lsrf"), default="lscf", help="pole estimator (default lscf)")
+    p.add_argument("--band", nargs=2, type=float, metavar=("F1", "F2"), help="band in Hz (default: all lines)")
+    p.add_argument("--order", type=int, default=60, help="highest model order (default 60)")
+    p.add_argument("--bands", type=int, default=1, help="fit band by band in this many sub-bands (dense spectra)")
+    p.add_argument("--freq-tol", type=float, default=0.01, help="stability: relative frequency change (0.01)")
+    p.add_argument("--damping-tol", type=float, default=0.05, help="stability: relative damping change (0.05)")
+    p.add_argument("--mac-min", type=float, default=0.95, help="stability: minimum MAC (0.95)")
+    p.add_argument("--no-refine", action="store_true", help="keep the estimator's poles (no nonlinear refinement)")
+    p.add_argument("--form", choices=("receptance", "mobility", "accelerance"),
+                   help="FRF form when the files do not state it")
+
+
+def _criteria(args: argparse.Namespace):
+    from ema import StabilityCriteria
+
+    return StabilityCriteria(freq_tol=args.freq_tol, damping_tol=args.damping_tol, mac_min=args.mac_min)
+
+
+def _fit(frf, args: argparse.Namespace, freqs=None):
+    from ema import fit
+
+    return fit(
+        frf,
+        method=args.method,
+        band=tuple(args.band) if args.band else None,
+        max_order=args.order,
+        frequencies_hz=freqs,
+        criteria=_criteria(args),
+        n_bands=args.bands,
+        refine=not args.no_refine,
+        progress=sys.stderr.isatty(),
+    )
+
+
+def _print_modes(result, out=None) -> None:
+    out = out or sys.stdout
+    m = result.model
+    print(f"{result.diagram.method}: {m.n_modes} modes in {result.diagram.band_hz[0]:g}-"
+          f"{result.diagram.band_hz[1]:g} Hz", file=out)
+    print(f"{'mode':>4}  {'f [Hz]':>12}  {'zeta [%]':>9}  {'quality':>7}  {'dominance':>9}", file=out)
+    for k in range(m.n_modes):
+        q = m.quality[k] if m.quality is not None else float("nan")
+        print(f"{k + 1:>4}  {m.frequency_hz[k]:>12.4f}  {100 * m.damping_ratio[k]:>9.4f}  {q:>7.2f}  "
+              f"{result.dominance[k]:>9.2f}", file=out)
+    if result.quality.size:
+        print(f"FRF fit quality: min {np.min(result.quality):.4f}, mean {np.mean(result.quality):.4f}", file=out)
+
+
+def _cmd_fit(args: argparse.Namespace) -> int:
+    from ema import read_frfs
+
+    frf = read_frfs(args.files, form=args.form)
+    result = _fit(frf, args, freqs=args.freqs)
+    if args.plot:
+        from ema.plots import plot_stabilization
+
+        fig = plot_stabilization(result.diagram, frf, selected_hz=result.model.frequency_hz)
+        Path(args.plot).parent.mkdir(parents=True, exist_ok=True)
+        fig.savefig(args.plot, dpi=120)
+    if args.json:
+        payload = result.as_dict()
+        payload["files"] = [str(f) for f in args.files]
+        print(json.dumps(payload, indent=2))
+    else:
+        _print_modes(result)
+    return 0
+
+
+def _uff_files(directory: str) -> list[Path]:
+    d = Path(directory)
+    if not d.is_dir():
+        raise FileNotFoundError(f"{d}: not a directory")
+    files = sorted(p for p in d.iterdir() if p.suffix.lower() in (".uff", ".unv"))
+    if not files:
+        raise FileNotFoundError(f"{d}: no .uff files")
+    return files
+
+
+def _out_dir(args: argparse.Namespace) -> Path:
+    return Path(args.out) if args.out else Path("out") / "ema" / Path(args.dir).resolve().name
+
+
+def _emit(table, name: str, args: argparse.Namespace) -> None:
+    from ema import write_table
+
+    path = write_table(table, _out_dir(args) / f"{name}.csv")
+    if args.json:
+        print(table.to_json(orient="split", double_precision=10))
+    else:
+        print(table.to_string(float_format=lambda v: f"{v:.4f}"))
+        print(f"written: {path}", file=sys.stderr)
+
+
+def _fit_each(args: argparse.Namespace) -> dict:
+    from ema import read_uff
+
+    models = {}
+    for path in _uff_files(args.dir):
+        result = _fit(read_uff(path, form=args.form), args)
+        models[path.stem] = result.model
+    return models
+
+
+def _cmd_blades(args: argparse.Namespace) -> int:
+    from ema import blade_deltas
+    from ema.campaign import frequency_table
+
+    models = _fit_each(args)
+    kw = {"freq_window": args.freq_window}
+    _emit(frequency_table(models, **kw), "blade_frequencies", args)
+    _emit(blade_deltas(models, **kw), "blade_deltas", args)
+    return 0
+
+
+def _cmd_joints(args: argparse.Namespace) -> int:
+    from ema import joint_frequencies
+
+    _emit(joint_frequencies(_fit_each(args), freq_window=args.freq_window), "joint_frequencies", args)
+    return 0
+
+
+def _cmd_disk(args: argparse.Namespace) -> int:
+    from ema import disk_modes, read_frfs
+
+    frf = read_frfs(_uff_files(args.dir), form=args.form)
+    _emit(disk_modes(_fit(frf, args).model), "disk_modes", args)
+    return 0
+
+
+def _cmd_assembly(args: argparse.Namespace) -> int:
+    import pandas as pd
+
+    from ema import read_frfs
+
+    result = _fit(read_frfs(_uff_files(args.dir), form=args.form), args)
+    m = result.model
+    table = pd.DataFrame(
+        {"frequency_hz": m.frequency_hz, "damping_ratio": m.damping_ratio, "dominance": result.dominance,
+         "quality": m.quality if m.quality is not None else np.nan},
+        index=pd.Index(np.arange(1, m.n_modes + 1), name="mode"),
+    )
+    _emit(table, "assembly_modes", args)
+    return 0
+
+
+def register(subparsers) -> None:
+    """Add the ``ema`` command group to the ``bladetwin`` parser."""
+    ema = subparsers.add_parser("ema", help="experimental modal analysis: fit UFF FRFs, campaign tables")
+    sub = ema.add_subparsers(dest="ema_command", metavar="SUBCOMMAND")
+    sub.required = True
+
+    p = sub.add_parser("fit", help="identify modes from UFF FRFs (58/58b)")
+    p.add_argument("files", nargs="+", metavar="FILE.uff", help="UFF files, merged into one FRF matrix")
+    _add_fit_options(p)
+    sel = p.add_mutually_exclusive_group()
+    sel.add_argument("--auto", action="store_true", help="automatic selection (default)")
+    sel.add_argument("--freqs", nargs="+", type=float, metavar="F", help="select modes near these frequencies [Hz]")
+    p.add_argument("--plot", metavar="OUT.png", help="write the stabilization diagram")
+    p.add_argument("--json", action="store_true", help="print JSON instead of a table")
+    p.set_defaults(func=_cmd_fit)
+
+    for name, func, what in (
+        ("blades", _cmd_blades, "blade frequencies and deltas (Eq. 37), one UFF per blade"),
+        ("disk", _cmd_disk, "disk modes with nodal diameters, one out-of-plane point per sector"),
+        ("assembly", _cmd_assembly, "assembly modes (use --bands for dense spectra)"),
+        ("joints", _cmd_joints, "disk-one-blade frequencies, one UFF per joint"),
+    ):
+        q = sub.add_parser(name, help=what)
+        q.add_argument("dir", metavar="DIR", help="folder with .uff files")
+        _add_fit_options(q)
+        q.add_argument("--freq-window", type=float, default=0.1, help="mode tracking frequency window (0.1)")
+        q.add_argument("--out", metavar="DIR", help="folder for the CSV tables (default out/ema/<DIR name>)")
+        q.add_argument("--json", action="store_true", help="print JSON instead of a table")
+        q.set_defaults(func=func)
