@@ -13,7 +13,9 @@ __all__ = ["register"]
 
 
 def _add_fit_options(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--method", choices=("lscf", "lsrf"), default="lscf", help="pole estimator (default lscf)")
+    p.add_argument("--method", choices=("lscf", "lsrf"), default=None,
+                   help="pole estimator (default: lscf; lsrf when --bands > 1, because LSCF is poorly conditioned "
+                        "on narrow bands high in frequency, docs/ema.md)")
     p.add_argument("--band", nargs=2, type=float, metavar=("F1", "F2"), help="band in Hz (default: all lines)")
     p.add_argument("--order", type=int, default=60, help="highest model order (default 60)")
     p.add_argument("--bands", type=int, default=1, help="fit band by band in this many sub-bands (dense spectra)")
@@ -31,12 +33,23 @@ def _criteria(args: argparse.Namespace):
     return StabilityCriteria(freq_tol=args.freq_tol, damping_tol=args.damping_tol, mac_min=args.mac_min)
 
 
+def _method(args: argparse.Namespace) -> str:
+    if args.method is None:
+        return "lsrf" if args.bands > 1 else "lscf"
+    if args.method == "lscf" and args.bands > 1:
+        print("bladetwin: warning: LSCF band-by-band fitting is poorly conditioned on narrow bands; "
+              "--method lsrf recovers far more modes on dense spectra (docs/ema.md)", file=sys.stderr)
+    return args.method
+
+
 def _fit(frf, args: argparse.Namespace, freqs=None):
     from ema import fit
 
+    if args.bands < 1:
+        raise ValueError(f"--bands must be ≥ 1, got {args.bands}")
     return fit(
         frf,
-        method=args.method,
+        method=_method(args),
         band=tuple(args.band) if args.band else None,
         max_order=args.order,
         frequencies_hz=freqs,

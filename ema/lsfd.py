@@ -235,7 +235,7 @@ def refine_poles(
     if not cost < cost0:
         return poles
     if np.any(np.abs(fr - f0) / f0 > 0.01):
-        log.warning("pole refinement moved a mode by more than 1 %%; keeping the estimator's poles")
+        log.warning("pole refinement moved a mode by more than 1 %; keeping the estimator's poles")
         return poles
     return lam
 

@@ -32,14 +32,14 @@ import numpy as np
 from tqdm import tqdm
 
 from .frf import FRFSet
-from .poles import PoleSet, band_data, resolve_orders, single_thread_blas
+from .poles import BandData, PoleSet, band_data, resolve_orders, single_thread_blas
 
 __all__ = ["lsrf", "orthonormal_basis", "evaluate_basis"]
 
 log = logging.getLogger(__name__)
 
 
-def orthonormal_basis(x: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
+def orthonormal_basis(x: np.ndarray, n: int, weight: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Polynomials ``q_0..q_n`` orthonormal on the points ``x`` (Arnoldi with re-orthogonalisation).
 
     Parameters
@@ -48,11 +48,14 @@ def orthonormal_basis(x: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
         Real sample points (normalised frequencies in [-1, 1]).
     n : int
         Highest degree.
+    weight : ndarray, shape (n_points,), optional
+        Positive weights: the columns are then ``w(x) q_j(x)``, orthonormal in the weighted inner product
+        (``q_0 = 1 / ||w||``); default all ones (``q_0 = 1 / sqrt(n_points)``).
 
     Returns
     -------
     Q : ndarray, shape (n_points, n + 1)
-        ``Q[:, j] = q_j(x)``, ``Q^T Q = I``.
+        ``Q[:, j] = w(x) q_j(x)``, ``Q^T Q = I``.
     Hs : ndarray, shape (n + 1, n)
         Recurrence (Hessenberg) matrix: ``x * Q[:, :n] = Q @ Hs``.
     """
@@ -61,7 +64,10 @@ def orthonormal_basis(x: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
         raise ValueError(f"order {n} needs at least {n + 1} lines, the band has {m}")
     Q = np.zeros((m, n + 1))
     Hs = np.zeros((n + 1, n))
-    Q[:, 0] = 1.0 / np.sqrt(m)
+    if weight is None:
+        Q[:, 0] = 1.0 / np.sqrt(m)
+    else:
+        Q[:, 0] = weight / np.linalg.norm(weight)
     for k in range(n):
         v = x * Q[:, k]
         for _ in range(2):  # classical Gram-Schmidt, twice
@@ -73,7 +79,7 @@ def orthonormal_basis(x: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
     return Q, Hs
 
 
-def evaluate_basis(Hs: np.ndarray, x: np.ndarray, n: int, m_points: int) -> np.ndarray:
+def evaluate_basis(Hs: np.ndarray, x: np.ndarray, n: int, m_points: float) -> np.ndarray:
     """Values of ``q_0..q_n`` at arbitrary (complex) points from the recurrence matrix.
 
     Parameters
@@ -81,8 +87,9 @@ def evaluate_basis(Hs: np.ndarray, x: np.ndarray, n: int, m_points: int) -> np.n
     Hs : ndarray, shape (>= n + 1, >= n)
     x : ndarray, shape (n_x,)
     n : int
-    m_points : int
-        Number of lines the basis was built on (``q_0 = 1/sqrt(m_points)``).
+    m_points : float
+        Number of lines the basis was built on (``q_0 = 1/sqrt(m_points)``); for a weighted basis the
+        squared norm of the weights.
 
     Returns
     -------
@@ -104,6 +111,7 @@ def lsrf(
     normalize: bool = True,
     progress: bool = False,
     coefficients: str = "real",
+    reweight: int | None = None,
 ) -> PoleSet:
     """Estimate poles with the LSRF method for a series of model orders.
 
@@ -125,41 +133,114 @@ def lsrf(
         "real" (default): real polynomials in ``s = j omega``; the basis is orthonormal on the lines
         mirrored to negative frequencies, ``x = omega / omega_hi``, and poles come in conjugate pairs
         (order n holds n/2 modes). "complex": complex coefficients in ``x`` centred on the band, each
-        pole once (order n holds n modes), suited to narrow local bands.
+        pole once (order n holds n modes), suited to narrow local bands. The complex denominator is
+        normalised by ``D(j) = 1`` (a point off the band, on the side of the stable poles) instead of a
+        unit leading coefficient: the least-squares denominator is then a kernel polynomial of the noise,
+        whose noise roots fall on the unstable side (negative damping) instead of on the frequency axis,
+        as the noise poles of LSCF do (see Notes).
+    reweight : int, optional
+        Sanathanan-Koerner passes (complex model only; default 2 there, 0 for "real"): each pass fits the
+        highest order, then weights the lines by ``1 / |D_s(x)|``, ``D_s`` holding the stable roots it found
+        in or near the band; the series of orders is fitted with the last weights (see Notes).
 
     Returns
     -------
     PoleSet
         Poles (rad/s, positive imaginary part, natural frequency within the band) per order, with the
         numerators at the pole (``N_f(x_r)``, proportional to the residues) as vectors.
+
+    Notes
+    -----
+    With ``a_n = 1`` the noise part of the normal matrix drives the denominator towards the polynomial
+    orthogonal on the lines, whose roots are real: in the complex model every spare order adds a pole with
+    about zero damping somewhere in the band, and those poles crowd the stabilization diagram of a dense
+    band. Minimising ``a^H M a`` under ``D(x0) = 1`` instead gives ``a ~ M^-1 conj(q(x0))``, a kernel
+    (Christoffel-Darboux) polynomial whose spurious roots lie in the half-plane opposite ``x0``. A physical
+    pole ``lambda = -sigma + j omega_d`` sits at ``x = (omega_d - omega_c + j sigma) / omega_h`` (upper
+    half-plane), so ``x0 = j`` sends the noise poles to negative damping, where the diagram drops them.
+    Noise-free data are fitted exactly under either normalisation.
+
+    The linearised error ``D h - N`` weights each line by ``|D|``, which is small near the poles already
+    found: a close mode next to a found one is fitted last, after noise (Levy's bias), so dense clusters
+    need very high orders. Weighting the lines by ``1 / |D_s|`` (one Sanathanan-Koerner step) turns the
+    error near the found poles into the output error ``h - N / D_s`` and resolves such clusters at
+    moderate orders. Every order of the series is refitted with the same weights, so the stabilization
+    diagram stays a diagram of one estimator. Distances to roots closer to the axis than one line are
+    floored at one line, so a spurious near-axis root cannot dominate the weights.
     """
     if coefficients not in ("real", "complex"):
         raise ValueError(f"coefficients {coefficients!r}: expected 'real' or 'complex'")
+    real = coefficients == "real"
+    passes = (0 if real else 2) if reweight is None else int(reweight)
+    if passes < 0 or (real and passes):
+        raise ValueError(f"reweight {reweight!r}: expected >= 0, and 0 with real coefficients")
     order_list = resolve_orders(max_order, orders)
     data = band_data(frf, band, per="frf" if normalize else "none")
     n_o, n_i, n_f = data.H.shape
     h = data.H.reshape(n_o * n_i, n_f)
     n_frf = h.shape[0]
-    n_max = order_list[-1]
-    P = n_max + 1
     w = 2 * np.pi * data.freq_hz
     w_lo, w_hi = 2 * np.pi * data.band_hz[0], 2 * np.pi * data.band_hz[1]
-    real = coefficients == "real"
+    if real:
+        wc, wh = 0.0, w_hi
+    else:
+        wc, wh = 0.5 * (w_lo + w_hi), 0.5 * (w_hi - w_lo)
+    x = (w - wc) / wh
+    weight = None
+    for _ in range(passes):
+        _, top_roots = _lsrf_pass(h, x, weight, order_list[-1:], real, data, (wc, wh), False)
+        weight = _sk_weight(x, top_roots, weight)
+    found, _ = _lsrf_pass(h, x, weight, order_list, real, data, (wc, wh), progress)
+    out_order = [np.full(lam.size, n) for n, lam, _ in found]
+    out_pole = [lam for _, lam, _ in found]
+    out_vec = [num for _, _, num in found]
+    return PoleSet(
+        method="lsrf",
+        band_hz=data.band_hz,
+        orders=order_list,
+        order=np.concatenate(out_order) if out_order else np.zeros(0, int),
+        pole=np.concatenate(out_pole) if out_pole else np.zeros(0, complex),
+        vector=np.vstack(out_vec) if out_vec else np.zeros((0, n_frf), complex),
+        outputs=frf.outputs,
+        inputs=frf.inputs,
+    )
+
+
+def _sk_weight(x: np.ndarray, roots: np.ndarray, previous: np.ndarray | None) -> np.ndarray | None:
+    """Sanathanan-Koerner line weights ``1 / |prod (x - x_r)|`` over the stable roots near the band."""
+    stable = roots[np.isfinite(roots) & (roots.imag > 0) & (np.abs(roots.real) <= 1.25)]
+    if stable.size == 0:
+        return previous
+    floor = float(np.median(np.diff(x))) if x.size > 1 else 1.0
+    logd = np.sum(np.log(np.maximum(np.abs(x[:, None] - stable[None, :]), floor)), axis=1)
+    return np.exp(-(logd - logd.min()))
+
+
+def _lsrf_pass(
+    h: np.ndarray, x: np.ndarray, weight: np.ndarray | None, order_list: tuple[int, ...], real: bool,
+    data: BandData, centre: tuple[float, float], progress: bool,
+) -> tuple[list[tuple[int, np.ndarray, np.ndarray]], np.ndarray]:
+    """One LSRF pass over all orders.
+
+    Returns ``[(order, poles in the band (rad/s), numerators at them (n_r, n_frf))]`` and all the roots
+    (in ``x``) of the highest order. ``centre`` is ``(omega_c, omega_h)`` with ``x = (omega - omega_c) / omega_h``.
+    """
+    wc, wh = centre
+    f_lo, f_hi = data.band_hz
+    n_frf, n_f = h.shape
+    n_max = order_list[-1]
+    P = n_max + 1
     if real:
         # basis orthonormal on the symmetric lines {-w_k} U {w_k}: q_j has the parity of j and
         # psi_j = j^j q_j(w / w_hi) is a real polynomial in s = j w
-        wc, wh = 0.0, w_hi
-        x = w / wh
         Qfull, Hs = orthonormal_basis(np.concatenate([-x[::-1], x]), n_max)
         Q = Qfull[n_f:]
-        m_points = 2 * n_f
+        m_points = 2.0 * n_f
         jpow = 1j ** np.arange(P)
         phase = (jpow.conj()[:, None] * jpow[None, :]).real  # Re j^(j - i): 0 for odd j - i, else +-1
     else:
-        wc, wh = 0.5 * (w_lo + w_hi), 0.5 * (w_hi - w_lo)
-        x = (w - wc) / wh
-        Q, Hs = orthonormal_basis(x, n_max)
-        m_points = n_f
+        Q, Hs = orthonormal_basis(x, n_max, weight)
+        m_points = float(n_f) if weight is None else float(np.sum(weight**2))
         jpow = np.ones(P)
 
     # S_f = Q^T diag(h_f) Q for all f, in chunks (real BLAS on real and imaginary parts)
@@ -182,9 +263,12 @@ def lsrf(
         G = np.zeros((P, P))
     else:
         G = np.zeros((P, P), dtype=np.complex128)
+    # values of the basis at the normalisation point x0 = j (complex model only); they grow like
+    # (1 + sqrt 2)^j, which stays finite up to order ~800
+    anchor = None if real else evaluate_basis(Hs, np.array([1j]), n_max, m_points)[0]
     wanted = set(order_list)
-    out_order, out_pole, out_vec = [], [], []
-    f_lo, f_hi = data.band_hz
+    found: list[tuple[int, np.ndarray, np.ndarray]] = []
+    top_roots = np.zeros(0, complex)
     with single_thread_blas():
         bar = tqdm(total=len(order_list), desc="LSRF", unit="order", disable=not progress, leave=False)
         for row in range(P):
@@ -193,16 +277,30 @@ def lsrf(
             n = row
             if n not in wanted:
                 continue
+            bar.update(1)
             M = T[: n + 1, : n + 1] - (2.0 if real else 1.0) * G[: n + 1, : n + 1]
-            try:
-                top = -np.linalg.solve(M[:n, :n], M[:n, n])
-            except np.linalg.LinAlgError:
-                top = -np.linalg.lstsq(M[:n, :n], M[:n, n], rcond=None)[0]
-            a = np.append(top, 1.0)
+            if real:
+                try:
+                    top = -np.linalg.solve(M[:n, :n], M[:n, n])
+                except np.linalg.LinAlgError:
+                    top = -np.linalg.lstsq(M[:n, :n], M[:n, n], rcond=None)[0]
+                a = np.append(top, 1.0)
+            else:
+                # minimise a^H M a under D(x0) = q(x0)^T a = 1 (see lsrf Notes)
+                c0 = anchor[: n + 1] / np.linalg.norm(anchor[: n + 1])
+                try:
+                    y = np.linalg.solve(M, c0.conj())
+                except np.linalg.LinAlgError:
+                    y = np.linalg.lstsq(M, c0.conj(), rcond=None)[0]
+                a = y / (c0 @ y)
+                if not (np.all(np.isfinite(a)) and abs(a[n]) > 1e-14 * np.linalg.norm(a)):
+                    continue
             c_coef = a * jpow[: n + 1]
             C = Hs[:n, :n].astype(np.complex128)
             C[:, n - 1] -= Hs[n, n - 1] * c_coef[:n] / c_coef[n]
             xr = np.linalg.eigvals(C)
+            if n == n_max:
+                top_roots = xr
             wr = wc + wh * xr
             lam = 1j * wr
             fn = np.abs(lam) / (2 * np.pi)
@@ -212,18 +310,6 @@ def lsrf(
                 b = S[:, : n + 1, : n + 1] @ a * (2.0 if real else 1.0)  # (n_frf, n+1) numerator coefficients
                 V = evaluate_basis(Hs, xr, n, m_points) * jpow[None, : n + 1]  # (n_r, n+1)
                 num = (V @ b.T) / data.scale.reshape(-1)[None, :]  # (n_r, n_frf)
-                out_order.append(np.full(lam.size, n))
-                out_pole.append(lam)
-                out_vec.append(num)
-            bar.update(1)
+                found.append((n, lam, num))
         bar.close()
-    return PoleSet(
-        method="lsrf",
-        band_hz=data.band_hz,
-        orders=order_list,
-        order=np.concatenate(out_order) if out_order else np.zeros(0, int),
-        pole=np.concatenate(out_pole) if out_pole else np.zeros(0, complex),
-        vector=np.vstack(out_vec) if out_vec else np.zeros((0, n_frf), complex),
-        outputs=frf.outputs,
-        inputs=frf.inputs,
-    )
+    return found, top_roots

@@ -8,7 +8,7 @@ import json
 import matplotlib
 import numpy as np
 import pytest
-from conftest import FN, synthetic_case
+from conftest import FN, ZETA, synthetic_case
 
 from bladetwin import cli_ema
 from ema import FRFSet, ModalModel, fit, write_frfs
@@ -45,6 +45,20 @@ def test_fit_json(uff_file, capsys, tmp_path):
     assert found.size == FN.size and np.allclose(found, FN, rtol=5e-4)
     assert all("damping_ratio" in m for m in out["modes"])
     assert png.stat().st_size > 0
+
+
+def test_fit_bands_json(uff_file, capsys):
+    """--bands: band-by-band LSRF, merged; the JSON names the local method and the full band."""
+    rc = _run(["ema", "fit", str(uff_file[0]), "--method", "lsrf", "--band", "20", "980", "--order", "40",
+               "--bands", "3", "--auto", "--json"])
+    assert rc == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["method"] == "lsrf/local" and out["band_hz"] == [20.0, 980.0]
+    found = np.array([m["frequency_hz"] for m in out["modes"]])
+    zeta = np.array([m["damping_ratio"] for m in out["modes"]])
+    assert found.size == FN.size and np.allclose(found, FN, rtol=5e-4)
+    assert np.max(np.abs(zeta - ZETA) / ZETA) < 0.10
+    assert out["fit_quality"]["min"] > 0.99
 
 
 def test_fit_table_and_freqs(uff_file, capsys):
