@@ -369,8 +369,8 @@ def _hybrid_assembly(
     out = sp.csr_matrix((np.ones(out_cols.size), (np.arange(out_cols.size), out_cols)), shape=(out_cols.size, n))
     labels = _meas_labels(n_sectors, sorted(patterns), n_acc)
     log.info("hybrid assembly: %d DOF (%d disk FE + %d blade ROM), nnz(K)=%d", n, nd, n - nd, K.nnz)
-    return ReducedAssembly(K, M, out, labels,
-                           {"formulation": formulation, "slots": sorted(patterns), "assembly": "full", "method": "hybrid"})
+    meta = {"formulation": formulation, "slots": sorted(patterns), "assembly": "full", "method": "hybrid"}
+    return ReducedAssembly(K, M, out, labels, meta)
 
 
 def solve_assembly(asm: ReducedAssembly, n_modes: int, *, backend: str = "auto") -> AssemblyModes:

@@ -39,7 +39,7 @@ import scipy.linalg as sla
 from .component import Component
 from .mistuning import as_delta
 from .modal import DenseModes, dense_modes
-from .solver import factorize, solve_modes
+from .solver import available_backends, factorize, solve_modes
 
 __all__ = ["RubinModel", "Superelement", "rubin", "reduce_blade", "blade_boundary_dofs", "DEFAULT_N_FREE_MODES"]
 
@@ -194,23 +194,29 @@ class RubinModel:
             ) from exc
         Krb = sla.cho_solve(cho, np.eye(ns), check_finite=False)
         Krb = 0.5 * (Krb + Krb.T)
-        # Eq. 14: T2 maps [η_r, η_f, x_b] → [η_r, η_f, g_b].
+        # Eqs. 15–17 in closed form (T2 of Eq. 14 applied to M̄, K̄ of Eqs. 8–9), with Φ_b = [Φ_r|b, Φ_f|b]:
+        #   K̃ = [[Φ_bᵀ K_rb Φ_b + diag(0, Ω_f²), −Φ_bᵀ K_rb], [−K_rb Φ_b, K_rb]]
+        #   M̃ = [[I + Φ_bᵀ M̂_r Φ_b, −Φ_bᵀ M̂_r], [−M̂_r Φ_b, M̂_r]],   M̂_r = K_rbᵀ M_r,b K_rb.
+        # The (3,3) block of K̃ is K_rbᵀ G_r,b K_rb = K_rb because G_r,b = A Ψ_r (Eq. 10 and the K-orthogonality
+        # of the residual modes; checked by the tests to 1e-6).
         Phi_b = np.hstack([self.Phi_r_b[S], self.Phi_f_b[S]])  # (ns, nr + m)
         nm = nr + m
-        T2 = np.zeros((nm + ns, nm + ns))
-        T2[np.arange(nm), np.arange(nm)] = 1.0
-        T2[nm:, :nm] = -Krb @ Phi_b
-        T2[nm:, nm:] = Krb
-        # Eqs. 8–9: block-diagonal M̄, K̄.
-        Mbar = np.zeros_like(T2)
-        Mbar[np.arange(nm), np.arange(nm)] = 1.0
-        Mbar[nm:, nm:] = self.M_rb[np.ix_(S, S)]
-        Kbar = np.zeros_like(T2)
-        Kbar[nr + np.arange(m), nr + np.arange(m)] = self.omega2
-        Kbar[nm:, nm:] = self.G_rb[np.ix_(S, S)]
-        # Eq. 15 (expanded form: Eqs. 16–17).
-        M = T2.T @ Mbar @ T2
-        K = T2.T @ Kbar @ T2
+        Mhat = Krb @ (self.M_rb[np.ix_(S, S)] @ Krb)
+        Mhat = 0.5 * (Mhat + Mhat.T)
+        KP = Krb @ Phi_b
+        MP = Mhat @ Phi_b
+        K = np.empty((nm + ns, nm + ns))
+        M = np.empty_like(K)
+        K[:nm, :nm] = Phi_b.T @ KP
+        K[nr + np.arange(m), nr + np.arange(m)] += self.omega2
+        K[nm:, :nm] = -KP
+        K[:nm, nm:] = -KP.T
+        K[nm:, nm:] = Krb
+        M[:nm, :nm] = Phi_b.T @ MP
+        M[np.arange(nm), np.arange(nm)] += 1.0
+        M[nm:, :nm] = -MP
+        M[:nm, nm:] = -MP.T
+        M[nm:, nm:] = Mhat
         return Superelement(0.5 * (K + K.T), 0.5 * (M + M.T), S, nr, m)
 
     def free_modes(self, n_modes: int) -> DenseModes:
@@ -297,7 +303,10 @@ def rubin(
     free = np.setdiff1d(np.arange(n), sup)
     F = -(M @ Phi_r) @ Phi_r[b].T  # P Aᵀ = Aᵀ − M Φ_r Φ_r|bᵀ, shape (n, n_b)
     F[b, np.arange(b.size)] += 1.0
-    fac = factorize(K[free][:, free].tocsr(), backend)
+    # Many right-hand sides: Pardiso's blocked solve beats SuperLU's column-by-column one even on small models
+    # (default blade, 1 305 columns: 8.7 s vs 22.9 s measured).
+    multi = "pardiso" if backend == "auto" and b.size >= 64 and "pardiso" in available_backends() else backend
+    fac = factorize(K[free][:, free].tocsr(), multi)
     try:
         X = np.zeros((n, b.size))
         X[free] = np.asarray(fac.solve(F[free])).reshape(free.size, b.size)

@@ -26,7 +26,16 @@ from .contact import ContactPattern
 from .fe_assembly import AssemblyModes, FEAssembly, assemble_fe
 from .modal import ModePairing, pair_modes
 
-__all__ = ["fe_assembly_mistuned", "compare", "Comparison", "random_patterns", "one_flank_pattern"]
+__all__ = [
+    "fe_assembly_mistuned",
+    "compare",
+    "Comparison",
+    "random_patterns",
+    "one_flank_pattern",
+    "validation_patterns",
+    "run_validation",
+    "solve_fe_modes",
+]
 
 log = logging.getLogger(__name__)
 
@@ -151,3 +160,89 @@ def random_patterns(
     return {int(s): ContactPattern.random(grid, float(rng.uniform(*fraction)), rng) for s in slots}
 
 
+
+
+def validation_patterns(grid: tuple[int, int], rng: np.random.Generator) -> dict[str, ContactPattern]:
+    """The four disk–one-blade validation patterns: all contact, ~30 % contact, one flank, ~70 % random."""
+    n = grid[0] * grid[1]
+    grids = []
+    for _ in range(2):
+        g = np.zeros(grid, bool)
+        g.flat[rng.choice(n, max(3, round(0.3 * n)), replace=False)] = True
+        grids.append(g)
+    return {
+        "all contact": ContactPattern.full(grid),
+        "~30 % contact": ContactPattern(*grids),
+        "one flank (L)": one_flank_pattern(grid, "L"),
+        "~70 % random": ContactPattern.random(grid, 0.7, rng),
+    }
+
+
+def run_validation(
+    bd: BladedDisk,
+    disk_cb,
+    blade,
+    *,
+    seed: int = 0,
+    parts: tuple[str, ...] = ("disk", "blade", "d1b", "full"),
+    formulation: str | None = None,
+    progress=None,
+) -> dict[str, list[Comparison]]:
+    """ROM-vs-FE validation suite (the acceptance checks of issue 3).
+
+    * ``disk``: 20 elastic modes of the free disk, CB (boundary freed) vs FE, by index.
+    * ``blade``: 20 elastic modes of the free blade, Rubin vs FE, by index.
+    * ``d1b``: 10 modes for the four :func:`validation_patterns` in the CB model's slot, MAC at the
+      measurement DOFs, by index.
+    * ``full``: 3 N modes with a random pattern per slot and a random δ per blade within ±2 % (FE reference:
+      blade stiffness scaled by 1 + δ), sparse hybrid ROM, paired by MAC.
+
+    ``progress`` is called with a short message before each step (the CLI maps it to its progress display).
+    """
+    from .rom_assembly import DEFAULT_FORMULATION, solve_d1b, solve_full
+    from .solver import solve_modes
+
+    form = formulation or DEFAULT_FORMULATION
+    say = progress or (lambda msg: log.info(msg))
+    rng = np.random.default_rng(seed)
+    out: dict[str, list[Comparison]] = {}
+    if "disk" in parts:
+        say("disk: FE free modes")
+        fe = solve_modes(bd.disk.K, bd.disk.M, 20).frequencies_hz
+        say("disk: CB free modes")
+        rom = disk_cb.free_modes(20).frequencies_hz
+        out["disk"] = [Comparison("free disk", fe, rom, rom / fe - 1, None, {"n_k": disk_cb.n_k})]
+    if "blade" in parts:
+        say("blade: FE free modes")
+        fe = solve_modes(bd.blade.K, bd.blade.M, 20).frequencies_hz
+        rom = blade.free_modes(20).frequencies_hz
+        out["blade"] = [Comparison("free blade", fe, rom, rom / fe - 1, None, {"m": blade.m})]
+    if "d1b" in parts:
+        slot = int(disk_cb.meta["slots"][0])
+        res = []
+        for name, p in validation_patterns(bd.params.grid, rng).items():
+            say(f"d1b: FE reference, {name}")
+            fe = solve_fe_modes(bd, {slot: p}, 10)
+            rom = solve_d1b(disk_cb, blade, p, slot, n_modes=10, formulation=form)
+            res.append(compare(f"d1b slot {slot}, {name}", fe, rom, 10, by_mac=False,
+                               contact_fraction=p.contact_fraction))
+        out["d1b"] = res
+    if "full" in parts:
+        n = 3 * bd.n_slots
+        pats = random_patterns(bd.params.grid, range(1, bd.n_slots + 1), rng)
+        delta = rng.uniform(-0.02, 0.02, bd.n_slots)
+        say(f"full: FE reference ({n} modes)")
+        from .fe_assembly import solve_fe
+
+        fe = solve_fe(fe_assembly_mistuned(bd, pats, delta), n)
+        say(f"full: hybrid ROM ({n} modes)")
+        rom = solve_full(bd, blade, pats, delta[:, None] * np.ones(blade.m), n_modes=n + 12, formulation=form)
+        out["full"] = [compare("full, random δ ±2 % and patterns", fe, rom, n)]
+    return out
+
+
+def solve_fe_modes(bd: BladedDisk, patterns: Mapping[int, ContactPattern], n: int) -> AssemblyModes:
+    """FE reference modes of an assembly (:func:`rom.fe_assembly.solve_fe` of :func:`assemble_fe`)."""
+    from .fe_assembly import solve_fe
+
+    return solve_fe(assemble_fe(bd, patterns), n)

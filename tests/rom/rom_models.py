@@ -6,7 +6,7 @@ parameters, so they are memoised on those.
 
 from __future__ import annotations
 
-from functools import lru_cache
+from functools import cache
 
 from rom.academic import AcademicParams, build_bladed_disk
 from rom.craig_bampton import DEFAULT_N_CB_MODES, reduce_disk
@@ -15,16 +15,16 @@ from rom.rubin import DEFAULT_N_FREE_MODES, reduce_blade
 COARSE = AcademicParams(level="coarse", grid=(3, 7))
 
 
-@lru_cache(maxsize=None)
+@cache
 def bladed_disk(n_blades: int = 18):
     return build_bladed_disk(COARSE.with_(n_blades=n_blades))
 
 
-@lru_cache(maxsize=None)
+@cache
 def disk_cb(n_blades: int = 18, slots: tuple[int, ...] = (1,), n_modes: int = DEFAULT_N_CB_MODES, keep_basis=False):
     return reduce_disk(bladed_disk(n_blades), slots, n_modes, keep_basis=keep_basis)
 
 
-@lru_cache(maxsize=None)
+@cache
 def blade(n_blades: int = 18, n_modes: int = DEFAULT_N_FREE_MODES, keep_basis: bool = True):
     return reduce_blade(bladed_disk(n_blades), n_modes, keep_basis=keep_basis)

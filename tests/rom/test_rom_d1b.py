@@ -46,7 +46,7 @@ def test_d1b_first_10_modes_within_0p3_percent_and_mac_0p99(fe_refs, name, slot,
     assert rom.meas_labels == fe.meas_labels
     rel = rom.frequencies_hz / fe.frequencies_hz - 1
     assert np.abs(rel).max() <= 3e-3
-    assert rel.min() >= -1e-8  # Rayleigh–Ritz
+    assert rel.min() >= -1e-7  # Rayleigh–Ritz (up to the eigensolver tolerance)
     assert np.diag(mac(fe.meas_shapes, rom.meas_shapes)).min() >= 0.99
 
 

@@ -1,0 +1,184 @@
+"""ROM benchmark: time and peak memory of each ROM step beside its FE reference (issue 3, docs/rom.md).
+
+Every step runs in a fresh subprocess (``--step NAME``), so peak memory (``resource.getrusage().ru_maxrss``)
+belongs to that step alone; the baseline column is the peak after building the FE model, before the step.
+ROM steps read the reduced models from a cache folder written by the build steps; FE steps store their
+modes so the ROM steps report their accuracy against them.
+
+Run (default level, several minutes)::
+
+    .venv/bin/python benchmarks/rom.py [--level default] [--workdir /tmp/bladetwin-rom-bench] [--json out.json]
+
+Targets: one disk–one-blade solve (10 modes) ≤ 0.25 s; full assembly, first three families, ≤ 3 min, ≤ 12 GB.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import resource
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+REPO = Path(__file__).resolve().parents[1]
+# This script is named like the ``rom`` package: keep its own folder off the import path.
+sys.path[:] = [p for p in sys.path if Path(p or ".").resolve() != Path(__file__).resolve().parent]
+sys.path.insert(0, str(REPO))
+STEPS = ("fe_disk", "rom_disk_cb", "fe_blade", "rom_blade_rubin", "fe_d1b", "rom_d1b", "fe_full", "rom_full")
+LABELS = {
+    "fe_disk": "FE free disk, 20 modes",
+    "rom_disk_cb": "disk CB build (1 slot, n_k = 100)",
+    "fe_blade": "FE free blade, 20 modes",
+    "rom_blade_rubin": "blade Rubin build (m = 50)",
+    "fe_d1b": "FE disk–one-blade, 10 modes",
+    "rom_d1b": "ROM disk–one-blade solve, 10 modes",
+    "fe_full": "FE full assembly, 3N modes",
+    "rom_full": "ROM full assembly (hybrid), 3N modes",
+}
+
+
+def _peak_gb() -> float:
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024**2  # Linux: kB
+
+
+def _case(bd):
+    """The d1b pattern and the full-assembly patterns/δ used by every step (fixed seed)."""
+    from rom.validation import random_patterns, validation_patterns
+
+    rng = np.random.default_rng(2026)
+    d1b = validation_patterns(bd.params.grid, rng)["~30 % contact"]
+    pats = random_patterns(bd.params.grid, range(1, bd.n_slots + 1), rng)
+    delta = rng.uniform(-0.02, 0.02, bd.n_slots)
+    return d1b, pats, delta
+
+
+def _save_modes(path: Path, modes) -> None:
+    np.savez(path, f=modes.frequencies_hz, s=modes.meas_shapes)
+
+
+def _load_modes(path: Path):
+    from rom.fe_assembly import AssemblyModes
+
+    with np.load(path, allow_pickle=False) as z:
+        return AssemblyModes(z["f"], z["s"], [])
+
+
+def run_step(step: str, level: str, workdir: Path) -> dict:
+    """Run one step in this process and return its measurements."""
+    from rom import cache
+    from rom.academic import AcademicParams, build_bladed_disk
+    from rom.fe_assembly import assemble_fe, solve_fe
+    from rom.modal import mac, pair_modes
+    from rom.rom_assembly import assemble_d1b, solve_assembly, solve_full
+    from rom.solver import solve_modes
+    from rom.validation import fe_assembly_mistuned
+
+    bd = build_bladed_disk(AcademicParams(level=level))
+    d1b_pat, pats, delta = _case(bd)
+    cdir = workdir / "cache"
+    base = _peak_gb()
+    out: dict = {"step": step}
+    t0 = time.perf_counter()
+    if step == "fe_disk":
+        solve_modes(bd.disk.K, bd.disk.M, 20)
+    elif step == "fe_blade":
+        solve_modes(bd.blade.K, bd.blade.M, 20)
+    elif step == "rom_disk_cb":
+        cb = cache.cached_reduce_disk(bd, (1,), cache_dir=cdir)
+        out["n"] = cb.n
+    elif step == "rom_blade_rubin":
+        b = cache.cached_reduce_blade(bd, cache_dir=cdir)
+        out["n"] = b.n_r + b.m + b.n_b
+    elif step == "fe_d1b":
+        fe = solve_fe(assemble_fe(bd, {1: d1b_pat}), 10)
+        _save_modes(workdir / "fe_d1b.npz", fe)
+        out["n"] = int(assemble_fe(bd, {1: d1b_pat}).K.shape[0])
+    elif step == "rom_d1b":
+        cb = cache.cached_reduce_disk(bd, (1,), cache_dir=cdir)
+        b = cache.cached_reduce_blade(bd, cache_dir=cdir)
+        solve_assembly(assemble_d1b(cb, b, d1b_pat), 10)  # warm-up (BLAS threads, imports)
+        reps = []
+        for _ in range(10):
+            t = time.perf_counter()
+            res = solve_assembly(assemble_d1b(cb, b, d1b_pat), 10)
+            reps.append(time.perf_counter() - t)
+        out["n"] = int(assemble_d1b(cb, b, d1b_pat).n)
+        out["median_solve_s"] = float(np.median(reps))
+        out["paper_formulation_solve_s"] = float(
+            np.median([_timed(lambda: solve_assembly(assemble_d1b(cb, b, d1b_pat, formulation="paper"), 10))
+                       for _ in range(5)]))
+        fe = _load_modes(workdir / "fe_d1b.npz")
+        out["max_rel_err"] = float(np.abs(res.frequencies_hz / fe.frequencies_hz - 1).max())
+        out["min_mac"] = float(np.diag(mac(fe.meas_shapes, res.meas_shapes)).min())
+    elif step == "fe_full":
+        asm = fe_assembly_mistuned(bd, pats, delta)
+        fe = solve_fe(asm, 3 * bd.n_slots)
+        _save_modes(workdir / "fe_full.npz", fe)
+        out["n"] = int(asm.K.shape[0])
+    elif step == "rom_full":
+        b = cache.cached_reduce_blade(bd, cache_dir=cdir)
+        t0 = time.perf_counter()  # the blade reduction is timed in its own step
+        n = 3 * bd.n_slots
+        res = solve_full(bd, b, pats, delta[:, None] * np.ones(b.m), n_modes=n + 12)
+        fe = _load_modes(workdir / "fe_full.npz")
+        pr = pair_modes(fe.frequencies_hz, fe.meas_shapes, res.frequencies_hz, res.meas_shapes)
+        out["max_rel_err"] = pr.max_abs_rel_err
+        out["min_mac"] = pr.min_mac
+        out["n_modes"] = n
+    else:
+        raise ValueError(f"unknown step {step!r}; choose from {STEPS}")
+    out["seconds"] = time.perf_counter() - t0
+    out["peak_gb"] = _peak_gb()
+    out["baseline_gb"] = base
+    return out
+
+
+def _timed(fn) -> float:
+    t = time.perf_counter()
+    fn()
+    return time.perf_counter() - t
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--level", default="default", choices=["coarse", "default", "fine"])
+    ap.add_argument("--workdir", default="/tmp/bladetwin-rom-bench")
+    ap.add_argument("--steps", nargs="+", default=list(STEPS), choices=STEPS)
+    ap.add_argument("--step", default=None, help=argparse.SUPPRESS)  # internal: run one step, print JSON
+    ap.add_argument("--json", default=None, help="also write all results to this JSON file")
+    args = ap.parse_args(argv)
+    work = Path(args.workdir)
+    work.mkdir(parents=True, exist_ok=True)
+    if args.step:
+        print(json.dumps(run_step(args.step, args.level, work)))
+        return 0
+    results = []
+    for step in args.steps:
+        cmd = [sys.executable, __file__, "--step", step, "--level", args.level, "--workdir", str(work)]
+        proc = subprocess.run(cmd, capture_output=True, text=True, cwd=REPO, env={**os.environ})
+        if proc.returncode != 0:
+            print(proc.stderr, file=sys.stderr)
+            raise SystemExit(f"step {step} failed")
+        r = json.loads(proc.stdout.strip().splitlines()[-1])
+        results.append(r)
+        extra = ""
+        if "median_solve_s" in r:
+            extra += f" median solve {r['median_solve_s']:.3f} s"
+            extra += f" (paper formulation {r['paper_formulation_solve_s']:.3f} s)"
+        if "max_rel_err" in r:
+            extra += f" | vs FE: max |err| {100 * r['max_rel_err']:.4f} %, min MAC {r['min_mac']:.5f}"
+        print(f"{LABELS[step]:<42s} {r['seconds']:8.2f} s  peak {r['peak_gb']:6.2f} GB "
+              f"(model build {r['baseline_gb']:.2f} GB){extra}", flush=True)
+    if args.json:
+        with open(args.json, "w") as fh:
+            json.dump({"level": args.level, "results": results}, fh, indent=1)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

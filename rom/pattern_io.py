@@ -1,0 +1,95 @@
+"""Contact-pattern files (docs/rom.md, "Pattern files").
+
+Two formats:
+
+``.npz``
+    Boolean (or 0/1 integer) arrays ``L`` and ``R``: shape ``(rows, cols)`` for one joint, or
+    ``(n, rows, cols)`` for ``n`` joints (slot 1..n in order). Loaded with ``allow_pickle=False``.
+``.txt`` / ``.csv``
+    One joint: the L grid as ``rows`` lines of 0/1 values (separated by commas and/or spaces), an empty
+    line, then the R grid. Lines starting with ``#`` are comments. Row i, column j is grid node (i, j)
+    (rows axial, columns radially outward, as in :mod:`rom.academic`).
+"""
+
+from __future__ import annotations
+
+import os
+import tempfile
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+
+from .contact import ContactPattern
+
+__all__ = ["load_patterns", "save_patterns"]
+
+
+def _parse_text(text: str, path) -> list[ContactPattern]:
+    blocks: list[list[list[int]]] = [[]]
+    for raw in text.splitlines():
+        line = raw.strip()
+        if line.startswith("#"):
+            continue
+        if not line:
+            if blocks[-1]:
+                blocks.append([])
+            continue
+        try:
+            blocks[-1].append([int(v) for v in line.replace(",", " ").split()])
+        except ValueError:
+            raise ValueError(f"{path}: grid lines must hold 0/1 values, got {raw!r}") from None
+    blocks = [b for b in blocks if b]
+    if len(blocks) != 2:
+        raise ValueError(f"{path}: expected two grids (L, then R) separated by an empty line, found {len(blocks)}")
+    grids = []
+    for name, b in zip("LR", blocks, strict=True):
+        if len({len(r) for r in b}) != 1:
+            raise ValueError(f"{path}: rows of grid {name} have different lengths")
+        grids.append(np.array(b))
+    return [ContactPattern(grids[0], grids[1])]
+
+
+def load_patterns(path: str | os.PathLike) -> list[ContactPattern]:
+    """Read one or more contact patterns from a ``.npz`` or text file (see module notes)."""
+    path = Path(path)
+    if not path.exists():
+        raise FileNotFoundError(f"pattern file not found: {path}")
+    if path.suffix.lower() == ".npz":
+        with np.load(path, allow_pickle=False) as z:
+            missing = {"L", "R"} - set(z.files)
+            if missing:
+                raise ValueError(f"{path}: a pattern .npz needs arrays 'L' and 'R'; missing {sorted(missing)}")
+            L, R = z["L"], z["R"]
+        if L.shape != R.shape or L.ndim not in (2, 3):
+            raise ValueError(
+                f"{path}: L and R must share a shape (rows, cols) or (n, rows, cols); got {L.shape}, {R.shape}"
+            )
+        if L.ndim == 2:
+            return [ContactPattern(L, R)]
+        return [ContactPattern(a, b) for a, b in zip(L, R, strict=True)]
+    if path.suffix.lower() in (".txt", ".csv"):
+        return _parse_text(path.read_text(encoding="utf-8"), path)
+    raise ValueError(f"{path}: pattern files must be .npz, .txt or .csv, got {path.suffix!r}")
+
+
+def save_patterns(path: str | os.PathLike, patterns: Sequence[ContactPattern]) -> Path:
+    """Write patterns to ``.npz`` (arrays L, R of shape (n, rows, cols)); atomic."""
+    path = Path(path)
+    if path.suffix.lower() != ".npz":
+        raise ValueError(f"save_patterns writes .npz files, got {path.suffix!r}")
+    L = np.stack([p.L for p in patterns])
+    R = np.stack([p.R for p in patterns])
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=path.stem + ".", suffix=".tmp")
+    try:
+        with os.fdopen(fd, "wb") as fh:
+            np.savez(fh, L=L, R=R)
+        umask = os.umask(0)
+        os.umask(umask)
+        os.chmod(tmp, 0o666 & ~umask)
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+    return path
