@@ -101,22 +101,26 @@ class CraigBamptonModel:
         """Fixed-interface natural frequencies (Hz), shape (n_k,)."""
         return np.sqrt(self.Lambda) / (2 * np.pi)
 
-    def K(self) -> np.ndarray:
-        """Reduced stiffness K̃ = [[Λ, 0], [0, κ_bb]] (Eq. 4), shape (n, n)."""
-        K = np.zeros((self.n, self.n))
-        k = self.n_k
+    def K(self, out: np.ndarray | None = None) -> np.ndarray:
+        """Reduced stiffness K̃ = [[Λ, 0], [0, κ_bb]] (Eq. 4), shape (n, n).
+
+        With ``out`` (zeros, at least (n, n)), the blocks are written into its leading (n, n) block and it
+        is returned: assemblies fill their matrix without an intermediate copy.
+        """
+        K = np.zeros((self.n, self.n)) if out is None else out
+        k, n = self.n_k, self.n
         K[np.arange(k), np.arange(k)] = self.Lambda
-        K[k:, k:] = self.kappa_bb
+        K[k:n, k:n] = self.kappa_bb
         return K
 
-    def M(self) -> np.ndarray:
-        """Reduced mass M̃ = [[I, μ_beᵀ], [μ_be, μ_bb]] (Eq. 5), shape (n, n)."""
-        M = np.zeros((self.n, self.n))
-        k = self.n_k
+    def M(self, out: np.ndarray | None = None) -> np.ndarray:
+        """Reduced mass M̃ = [[I, μ_beᵀ], [μ_be, μ_bb]] (Eq. 5), shape (n, n); ``out`` as in :meth:`K`."""
+        M = np.zeros((self.n, self.n)) if out is None else out
+        k, n = self.n_k, self.n
         M[np.arange(k), np.arange(k)] = 1.0
-        M[k:, :k] = self.mu_be
-        M[:k, k:] = self.mu_be.T
-        M[k:, k:] = self.mu_bb
+        M[k:n, :k] = self.mu_be
+        M[:k, k:n] = self.mu_be.T
+        M[k:n, k:n] = self.mu_bb
         return M
 
     def truncated(self, n_k: int) -> CraigBamptonModel:

@@ -200,10 +200,8 @@ def _cb_assembly(
         if acc.size != n_acc:
             raise AssertionError("accessory DOFs lost in the super-element")  # pragma: no cover
         blade_out.append(acc)
-    K = np.zeros((n, n))
-    M = np.zeros((n, n))
-    K[: disk.n, : disk.n] = disk.K()
-    M[: disk.n, : disk.n] = disk.M()
+    K = disk.K(out=np.zeros((n, n)))
+    M = disk.M(out=np.zeros((n, n)))
     for Kp, Mp, idx in parts:
         ix = np.ix_(idx, idx)
         K[ix] += Kp
