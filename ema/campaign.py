@@ -3,13 +3,13 @@
 from __future__ import annotations
 
 import os
-import tempfile
 from collections.abc import Mapping
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
+from .fileio import atomic_path
 from .mac import pair_modes
 from .modal import ModalModel
 
@@ -182,13 +182,6 @@ def disk_modes(model: ModalModel, sector_dofs: list[tuple[int, int]] | None = No
 def write_table(table: pd.DataFrame, path: str | os.PathLike, float_format: str = "%.6g") -> Path:
     """Write a table to CSV atomically (temporary file in the same folder, then ``os.replace``)."""
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "w", newline="") as fh:
-            table.to_csv(fh, float_format=float_format)
-        os.replace(tmp, path)
-    finally:
-        if os.path.exists(tmp):
-            os.remove(tmp)
+    with atomic_path(path) as tmp, open(tmp, "w", newline="") as fh:
+        table.to_csv(fh, float_format=float_format)
     return path

@@ -10,7 +10,6 @@ from __future__ import annotations
 import logging
 import os
 import re
-import tempfile
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -19,6 +18,7 @@ import numpy as np
 import pyuff
 
 from .errors import UFFError
+from .fileio import atomic_path
 from .frf import DOF, FRF_FORMS, FRFSet, Nodes, UnitSystem, merge_frfsets
 from .modal import ModalModel
 
@@ -402,17 +402,9 @@ def read_modes(path: str | os.PathLike) -> ModalModel:
 # --------------------------------------------------------------------------------------------- writing
 def _atomic_write(path: Path, dsets: list[dict]) -> None:
     """Write data sets to ``path`` through a temporary file in the same folder and ``os.replace``."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    os.close(fd)
-    try:
-        os.remove(tmp)  # pyuff appends to existing files; start from nothing
-        writer = pyuff.UFF(tmp)
-        writer.write_sets(dsets, mode="add")
-        os.replace(tmp, path)
-    finally:
-        if os.path.exists(tmp):
-            os.remove(tmp)
+    with atomic_path(path) as tmp:
+        tmp.unlink()  # pyuff appends to existing files; start from nothing
+        pyuff.UFF(str(tmp)).write_sets(dsets, mode="add")
 
 
 def _even_axis(freq: np.ndarray) -> bool:

@@ -20,7 +20,6 @@ import hashlib
 import json
 import logging
 import os
-import tempfile
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
@@ -28,6 +27,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from .craig_bampton import DEFAULT_N_CB_MODES, CraigBamptonModel, disk_boundary_dofs, reduce_disk
+from .fileio import atomic_path
 from .rubin import DEFAULT_N_FREE_MODES, RubinModel, blade_boundary_dofs, reduce_blade
 
 __all__ = [
@@ -108,21 +108,10 @@ def save_model(path: str | os.PathLike, model: CraigBamptonModel | RubinModel, k
         else:
             arrays[f.name] = np.asarray(v)
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=path.stem + ".", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            np.savez(fh, **arrays)
-            fh.flush()
-            os.fsync(fh.fileno())
-        umask = os.umask(0)
-        os.umask(umask)
-        os.chmod(tmp, 0o666 & ~umask)
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
+    with atomic_path(path) as tmp, open(tmp, "wb") as fh:
+        np.savez(fh, **arrays)
+        fh.flush()
+        os.fsync(fh.fileno())
     return path
 
 

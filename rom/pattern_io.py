@@ -14,13 +14,13 @@ Two formats:
 from __future__ import annotations
 
 import os
-import tempfile
 from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
 
 from .contact import ContactPattern
+from .fileio import atomic_path
 
 __all__ = ["load_patterns", "save_patterns"]
 
@@ -80,16 +80,6 @@ def save_patterns(path: str | os.PathLike, patterns: Sequence[ContactPattern]) -
         raise ValueError(f"save_patterns writes .npz files, got {path.suffix!r}")
     L = np.stack([p.L for p in patterns])
     R = np.stack([p.R for p in patterns])
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=path.stem + ".", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            np.savez(fh, L=L, R=R)
-        umask = os.umask(0)
-        os.umask(umask)
-        os.chmod(tmp, 0o666 & ~umask)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+    with atomic_path(path) as tmp, open(tmp, "wb") as fh:
+        np.savez(fh, L=L, R=R)
     return path

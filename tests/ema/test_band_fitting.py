@@ -16,9 +16,10 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from conftest import modal_frfs
 
 from ema import FRFSet, fit, local_poles, lsrf, mac, stabilize
+
+from .synth import modal_frfs
 
 N_BLADES = 18
 BAND = (300.0, 1500.0)

@@ -8,11 +8,12 @@ import json
 import matplotlib
 import numpy as np
 import pytest
-from conftest import FN, ZETA, synthetic_case
 
 from bladetwin import cli_ema
 from ema import FRFSet, ModalModel, fit, write_frfs
 from ema.plots import plot_frf_fit, plot_mac, plot_stabilization
+
+from .synth import FN, ZETA, synthetic_case
 
 matplotlib.use("Agg")
 

@@ -2,7 +2,6 @@
 
 import numpy as np
 import pytest
-from conftest import FN, synthetic_case
 from matplotlib.backend_bases import MouseEvent
 from matplotlib.figure import Figure
 
@@ -11,6 +10,8 @@ from ema.frf import FRFSet
 from ema.picker import PolePicker
 from ema.selection import select_picks
 from ema.stabilization import STABLE_FDV, stabilize
+
+from .synth import FN, synthetic_case
 
 
 @pytest.fixture(scope="module")

@@ -4,10 +4,11 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from conftest import FN, ZETA, synthetic_case
 
 from ema import FRFSet, StabilizationDiagram, fit, lscf, lsrf, mac, stabilize
 from ema.stabilization import STABLE_FDV
+
+from .synth import FN, ZETA, synthetic_case
 
 
 def _frfset(form, n_i=1):

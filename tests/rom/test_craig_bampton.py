@@ -2,10 +2,11 @@
 
 import numpy as np
 import pytest
-import rom_models
 
 from rom.craig_bampton import craig_bampton, disk_boundary_dofs, reduce_disk
 from rom.solver import solve_modes
+
+from . import rom_models
 
 
 def test_free_disk_first_20_modes_within_0p3_percent_and_never_below_fe():

@@ -2,11 +2,12 @@
 
 import numpy as np
 import pytest
-import rom_models
 
 from rom import cache
 from rom.contact import ContactPattern
 from rom.pattern_io import load_patterns, save_patterns
+
+from . import rom_models
 
 
 def _same(a, b):

@@ -2,13 +2,14 @@
 
 import numpy as np
 import pytest
-import rom_models
 
 from rom.contact import ContactPattern
 from rom.fe_assembly import assemble_fe, solve_fe
 from rom.modal import mac
 from rom.rom_assembly import assemble_d1b, solve_d1b
 from rom.validation import fe_assembly_mistuned, one_flank_pattern
+
+from . import rom_models
 
 GRID = (3, 7)
 

@@ -2,13 +2,14 @@
 
 import numpy as np
 import pytest
-import rom_models
 
 from rom.contact import ContactPattern
 from rom.fe_assembly import solve_fe
 from rom.rom_assembly import assemble_full, solve_full
 from rom.solver import nodal_diameters
 from rom.validation import compare, fe_assembly_mistuned, random_patterns
+
+from . import rom_models
 
 GRID = (3, 7)
 N = 18

@@ -2,11 +2,12 @@
 
 import numpy as np
 import pytest
-import rom_models
 import scipy.linalg as sla
 
 from rom.rubin import blade_boundary_dofs, rubin
 from rom.solver import solve_modes
+
+from . import rom_models
 
 
 def test_free_blade_first_20_modes_within_0p3_percent_and_never_below_fe():

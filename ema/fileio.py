@@ -1,0 +1,36 @@
+"""Atomic file output: write to a temporary file in the target's folder, then rename over the target.
+
+``rom`` has the same helper (``rom.fileio``): the two floor-1 packages may not import each other
+(docs/design.md §1).
+"""
+
+from __future__ import annotations
+
+import os
+import tempfile
+from collections.abc import Iterator
+from contextlib import contextmanager
+from pathlib import Path
+
+__all__ = ["atomic_path"]
+
+
+@contextmanager
+def atomic_path(path: str | os.PathLike) -> Iterator[Path]:
+    """Yield a temporary path beside ``path``; on success it atomically replaces ``path``.
+
+    The folder is created if needed. On an exception the temporary file is removed and ``path`` is left
+    as it was. The result gets the permissions a plain ``open()`` would give (``mkstemp`` creates 0600).
+    """
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    os.close(fd)
+    try:
+        yield Path(tmp)
+        umask = os.umask(0)
+        os.umask(umask)
+        os.chmod(tmp, 0o666 & ~umask)
+        os.replace(tmp, path)
+    finally:
+        Path(tmp).unlink(missing_ok=True)
