@@ -216,6 +216,65 @@ def _sk_weight(x: np.ndarray, roots: np.ndarray, previous: np.ndarray | None) ->
     return np.exp(-(logd - logd.min()))
 
 
+def _comrade_roots(C: np.ndarray, real: bool) -> np.ndarray:
+    """Eigenvalues (roots in x) of the comrade matrix C, shape (n, n).
+
+    Real model: the basis is orthonormal on lines mirrored about 0, so its recurrence has a zero diagonal,
+    and the denominator is a real polynomial in s = j x. Then ``C~ = j E^-1 C E`` with ``E = diag(j^k)`` is
+    real and its eigenvalues are the roots in s: a real eigen-solve (about 4x cheaper than the complex one,
+    which dominated LSRF) gives ``x = -j s``. Falls back to the complex solve if C~ is not real.
+    """
+    if real:
+        n = C.shape[0]
+        k = np.arange(n)
+        Ct = C * (1j ** ((k[None, :] - k[:, None] + 1) % 4))
+        if np.abs(Ct.imag).max() <= 1e-12 * max(np.abs(Ct.real).max(), 1e-300):
+            return -1j * np.linalg.eigvals(Ct.real)
+    return np.linalg.eigvals(C)
+
+
+def _frf_grams(h: np.ndarray, Q: np.ndarray, real: bool) -> np.ndarray:
+    """``S_f = Q^T diag(h_f) Q`` for every FRF f, shape (n_frf, P, P), in chunks of FRFs.
+
+    Complex model: complex S_f. Real model: ``Re(j^(j-i) S_f)``, the real unknowns' matrix. There the
+    phase ``j^(j-i)`` is real for even ``j - i`` and imaginary for odd ``j - i``, so the even-difference
+    entries need only ``Re h`` and the odd ones only ``Im h``: splitting the basis into its even and odd
+    columns needs three products of (P/2)-column blocks instead of two full ones (about 5x fewer flops;
+    this is the dominant cost of LSRF).
+    """
+    n_frf, n_f = h.shape
+    P = Q.shape[1]
+    chunk = max(1, int(4e7 // (n_f * P)))
+
+    def gram(hpart: np.ndarray, QA: np.ndarray, QB: np.ndarray) -> np.ndarray:
+        # One GEMM for the whole chunk; the product is built as (n_f, c, nb) so that the reshape is free.
+        c, nb = hpart.shape[0], QB.shape[1]
+        X = (hpart.T[:, :, None] * QB[:, None, :]).reshape(n_f, c * nb)
+        return (QA.T @ X).reshape(QA.shape[1], c, nb).transpose(1, 0, 2)
+
+    if not real:
+        S = np.empty((n_frf, P, P), dtype=np.complex128)
+        for start in range(0, n_frf, chunk):
+            hs = h[start : start + chunk]
+            S[start : start + hs.shape[0]] = gram(hs.real, Q, Q) + 1j * gram(hs.imag, Q, Q)
+        return S
+    ev, od = np.arange(0, P, 2), np.arange(1, P, 2)
+    d = np.arange(P)[None, :] - np.arange(P)[:, None]  # j - i
+    sign_even = np.where(d % 4 == 0, 1.0, -1.0)  # Re j^d for even d
+    sign_odd = -np.where(d % 4 == 1, 1.0, -1.0)  # -Im j^d for odd d: Re(j^d (a + j b)) = -Im(j^d) b
+    Qe, Qo = Q[:, ev], Q[:, od]
+    S = np.empty((n_frf, P, P))
+    for start in range(0, n_frf, chunk):
+        hs = h[start : start + chunk]
+        sl = slice(start, start + hs.shape[0])
+        S[sl, ev[:, None], ev[None, :]] = gram(hs.real, Qe, Qe) * sign_even[np.ix_(ev, ev)]
+        S[sl, od[:, None], od[None, :]] = gram(hs.real, Qo, Qo) * sign_even[np.ix_(od, od)]
+        B = gram(hs.imag, Qe, Qo)  # (c, n_even, n_odd); the (odd, even) block is its transpose
+        S[sl, ev[:, None], od[None, :]] = B * sign_odd[np.ix_(ev, od)]
+        S[sl, od[:, None], ev[None, :]] = B.transpose(0, 2, 1) * sign_odd[np.ix_(od, ev)]
+    return S
+
+
 def _lsrf_pass(
     h: np.ndarray, x: np.ndarray, weight: np.ndarray | None, order_list: tuple[int, ...], real: bool,
     data: BandData, centre: tuple[float, float], progress: bool,
@@ -243,22 +302,11 @@ def _lsrf_pass(
         m_points = float(n_f) if weight is None else float(np.sum(weight**2))
         jpow = np.ones(P)
 
-    # S_f = Q^T diag(h_f) Q for all f, in chunks (real BLAS on real and imaginary parts)
-    S = np.empty((n_frf, P, P), dtype=np.complex128)
-    chunk = max(1, int(4e7 // (n_f * P)))
-    for start in range(0, n_frf, chunk):
-        hs = h[start : start + chunk]  # (c, n_f)
-        c = hs.shape[0]
-        re = (hs.real[:, :, None] * Q[None, :, :]).transpose(1, 0, 2).reshape(n_f, c * P)
-        im = (hs.imag[:, :, None] * Q[None, :, :]).transpose(1, 0, 2).reshape(n_f, c * P)
-        Sr = (Q.T @ re).reshape(P, c, P).transpose(1, 0, 2)
-        Si = (Q.T @ im).reshape(P, c, P).transpose(1, 0, 2)
-        S[start : start + c] = Sr + 1j * Si
     T = Q.T @ (np.sum(np.abs(h) ** 2, axis=0)[:, None] * Q)
+    S = _frf_grams(h, Q, real)
     if real:
-        # real unknowns: S_f <- Re(j^(j-i) S_f), numerator b_f = 2 S_f a, M = T' - 2 sum S_f^T S_f
-        jj = jpow.conj()[:, None] * jpow[None, :]
-        S = (S * jj[None]).real
+        # real unknowns: S_f <- Re(j^(j-i) S_f) (built so by _frf_grams), numerator b_f = 2 S_f a,
+        # M = T' - 2 sum S_f^T S_f
         T = T * phase
         G = np.zeros((P, P))
     else:
@@ -298,7 +346,7 @@ def _lsrf_pass(
             c_coef = a * jpow[: n + 1]
             C = Hs[:n, :n].astype(np.complex128)
             C[:, n - 1] -= Hs[n, n - 1] * c_coef[:n] / c_coef[n]
-            xr = np.linalg.eigvals(C)
+            xr = _comrade_roots(C, real)
             if n == n_max:
                 top_roots = xr
             wr = wc + wh * xr
