@@ -165,16 +165,18 @@ def _cmd_plot(args) -> int:
     return 0
 
 
-def table1_rows(bd, n: int = 18) -> list[list]:
+def table1_rows(bd, sol=None, scale: float = 1.0) -> list[list]:
     """Free-disk modes beside the paper's Table 1, paired by nodal diameter (k-th family of each ND).
 
-    Rows: [mode, Table 1 Hz, Table 1 ND, model Hz or None, model ND, difference %].
+    ``sol`` is the disk's ``ModalSolution`` (18 modes are solved when not given); ``scale`` multiplies its
+    frequencies (calibrating E scales every frequency of the homogeneous disk by one factor).
+    Rows: [mode, Table 1 Hz, Table 1 ND, model Hz or "—", model ND, difference %].
     """
     from rom.solver import nodal_diameters, solve_modes
 
-    sol = solve_modes(bd.disk.K, bd.disk.M, n)
+    sol = sol if sol is not None else solve_modes(bd.disk.K, bd.disk.M, 18)
     nd = nodal_diameters(sol.shapes[3 * bd.disk.node_set("meas") + 2])
-    f = sol.frequencies_hz
+    f = sol.frequencies_hz * scale
     keep = [0] + [i for i in range(1, f.size) if f[i] / f[i - 1] - 1 > 1e-4]
     used: set[int] = set()
     rows = []

@@ -44,7 +44,9 @@ class Calibration:
         return self.E_after / self.E_before
 
 
-def calibrate_modulus(component: Component, target_hz: float, mode: int = 0, backend: str = "auto") -> Calibration:
+def calibrate_modulus(
+    component: Component, target_hz: float, mode: int = 0, backend: str = "auto", current_hz: float | None = None
+) -> Calibration:
     """Set the Young's modulus so that elastic mode ``mode`` (0-based) sits at ``target_hz``.
 
     The paper matches the disk's first mode to 1090.6 Hz, and the blade's first free–free eigenvalue to the
@@ -58,6 +60,9 @@ def calibrate_modulus(component: Component, target_hz: float, mode: int = 0, bac
         Target frequency in Hz (> 0).
     mode : int
         Elastic mode index, 0-based, rigid-body modes excluded.
+    current_hz : float, optional
+        The component's present frequency of that mode, when the caller has already solved for it
+        (skips the modal solve).
     """
     if not (isinstance(target_hz, (int, float)) and math.isfinite(target_hz) and target_hz > 0):
         raise ValueError(f"target_hz must be a positive frequency in Hz, got {target_hz!r}")
@@ -65,7 +70,12 @@ def calibrate_modulus(component: Component, target_hz: float, mode: int = 0, bac
         raise ValueError(f"mode must be an elastic mode index in 0..99, got {mode!r}")
     if "E" not in component.meta:
         raise ValueError(f"component {component.name!r} has no meta['E']: cannot calibrate a non-homogeneous model")
-    f = float(solve_modes(component.K, component.M, mode + 1, backend=backend).frequencies_hz[mode])
+    if current_hz is None:
+        f = float(solve_modes(component.K, component.M, mode + 1, backend=backend).frequencies_hz[mode])
+    elif math.isfinite(current_hz) and current_hz > 0:
+        f = float(current_hz)
+    else:
+        raise ValueError(f"current_hz must be a positive frequency in Hz, got {current_hz!r}")
     scale = (target_hz / f) ** 2
     E0 = float(component.meta["E"])
     meta = dict(component.meta, E=E0 * scale)
@@ -75,17 +85,18 @@ def calibrate_modulus(component: Component, target_hz: float, mode: int = 0, bac
 
 
 def calibrate_bladed_disk(bd, disk_target_hz: float | None = 1090.6, blade_target_hz: float | None = None,
-                          backend: str = "auto"):
+                          backend: str = "auto", disk_current_hz: float | None = None):
     """Calibrate the disk (first elastic mode) and/or the blade (first free–free mode) of a ``BladedDisk``.
 
     Returns a new ``BladedDisk`` whose components and ``params`` materials carry the calibrated moduli.
-    ``None`` leaves that component as it is.
+    ``None`` leaves that component as it is. ``disk_current_hz`` is the disk's present first elastic
+    frequency when the caller already knows it (no modal solve).
     """
     from dataclasses import replace
 
     disk, blade, params = bd.disk, bd.blade, bd.params
     if disk_target_hz is not None:
-        cal = calibrate_modulus(disk, disk_target_hz, 0, backend)
+        cal = calibrate_modulus(disk, disk_target_hz, 0, backend, current_hz=disk_current_hz)
         disk = cal.component
         params = replace(params, disk_material=replace(params.disk_material, E=cal.E_after))
     if blade_target_hz is not None:

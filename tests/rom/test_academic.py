@@ -117,3 +117,11 @@ BAD = [
 def test_bad_parameters_raise_value_error_naming_parameter(change, name):
     with pytest.raises(ValueError, match=name.replace(".", r"\.")):
         dataclasses.replace(AcademicParams(level="coarse"), **change)
+
+
+def test_calibration_with_known_frequency_skips_the_solve_and_agrees(coarse_bd):
+    solved = calibrate_modulus(coarse_bd.blade, 900.0)
+    known = calibrate_modulus(coarse_bd.blade, 900.0, current_hz=solved.frequency_before_hz)
+    assert known.E_after == pytest.approx(solved.E_after, rel=1e-12)
+    with pytest.raises(ValueError, match="current_hz"):
+        calibrate_modulus(coarse_bd.blade, 900.0, current_hz=-1.0)
