@@ -15,16 +15,14 @@ from pathlib import Path
 
 import numpy as np
 
-from .cli_fe import _parse_grid, build_model
+from .cli_fe import _level_arg, _parse_grid, build_model
 from .util import format_table, print_json, step
 
 __all__ = ["register", "build_roms", "parse_delta"]
 
 
 def _common(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--level", default="default", choices=["coarse", "default", "fine"],
-                   help="mesh level (default: %(default)s; coarse is for tests)")
-    p.add_argument("--grid", default=None, metavar="ROWSxCOLS", help="contact grid per flank, e.g. 7x31 or 3x7")
+    _level_arg(p)
     p.add_argument("--calibrate", action="store_true", help="calibrate the disk modulus to Table 1 first")
     p.add_argument("--n-cb", type=int, default=None, help="fixed-interface disk modes n_k (default: 100)")
     p.add_argument("--n-free", type=int, default=None, help="free-interface blade modes m (default: 50)")

@@ -147,7 +147,7 @@ def lscf(
 
     G = np.zeros((P * n_i, P * n_i))
     wanted = set(order_list)
-    out_order, out_pole, out_vec = [], [], []
+    found: list[tuple[int, np.ndarray, np.ndarray]] = []
     f_lo, f_hi = data.band_hz
     with single_thread_blas():
         bar = tqdm(total=len(order_list), desc="LSCF", unit="order", disable=not progress, leave=False)
@@ -193,19 +193,7 @@ def lscf(
                 Bl = np.einsum("joi,ir,jr->or", theta, lvec, Zp)  # (n_o, n_r)
                 Bl = Bl / data.scale[:, None]
                 vec = (Bl[:, None, :] * lvec[None, :, :]).reshape(n_o * n_i, lam.size).T if n_i > 1 else Bl.T
-                out_order.append(np.full(lam.size, p))
-                out_pole.append(lam)
-                out_vec.append(vec)
+                found.append((p, lam, vec))
             bar.update(1)
         bar.close()
-    n_vec = n_o * n_i
-    return PoleSet(
-        method="lscf",
-        band_hz=data.band_hz,
-        orders=order_list,
-        order=np.concatenate(out_order) if out_order else np.zeros(0, int),
-        pole=np.concatenate(out_pole) if out_pole else np.zeros(0, complex),
-        vector=np.vstack(out_vec) if out_vec else np.zeros((0, n_vec), complex),
-        outputs=frf.outputs,
-        inputs=frf.inputs,
-    )
+    return PoleSet.from_orders("lscf", data.band_hz, order_list, found, n_o * n_i, frf.outputs, frf.inputs)

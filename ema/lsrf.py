@@ -191,19 +191,7 @@ def lsrf(
         _, top_roots = _lsrf_pass(h, x, weight, order_list[-1:], real, data, (wc, wh), False)
         weight = _sk_weight(x, top_roots, weight)
     found, _ = _lsrf_pass(h, x, weight, order_list, real, data, (wc, wh), progress)
-    out_order = [np.full(lam.size, n) for n, lam, _ in found]
-    out_pole = [lam for _, lam, _ in found]
-    out_vec = [num for _, _, num in found]
-    return PoleSet(
-        method="lsrf",
-        band_hz=data.band_hz,
-        orders=order_list,
-        order=np.concatenate(out_order) if out_order else np.zeros(0, int),
-        pole=np.concatenate(out_pole) if out_pole else np.zeros(0, complex),
-        vector=np.vstack(out_vec) if out_vec else np.zeros((0, n_frf), complex),
-        outputs=frf.outputs,
-        inputs=frf.inputs,
-    )
+    return PoleSet.from_orders("lsrf", data.band_hz, order_list, found, n_frf, frf.outputs, frf.inputs)
 
 
 def _sk_weight(x: np.ndarray, roots: np.ndarray, previous: np.ndarray | None) -> np.ndarray | None:

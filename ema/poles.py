@@ -45,6 +45,29 @@ class PoleSet:
     outputs: tuple[DOF, ...] = field(default=())
     inputs: tuple[DOF, ...] = field(default=())
 
+    @classmethod
+    def from_orders(
+        cls,
+        method: str,
+        band_hz: tuple[float, float],
+        orders: tuple[int, ...],
+        found: list[tuple[int, np.ndarray, np.ndarray]],
+        n_vec: int,
+        outputs: tuple[DOF, ...],
+        inputs: tuple[DOF, ...],
+    ) -> PoleSet:
+        """Flatten ``[(order, poles (n_r,), vectors (n_r, n_vec)), ...]`` of an estimator's order loop."""
+        return cls(
+            method=method,
+            band_hz=band_hz,
+            orders=orders,
+            order=np.concatenate([np.full(lam.size, n) for n, lam, _ in found]) if found else np.zeros(0, int),
+            pole=np.concatenate([lam for _, lam, _ in found]) if found else np.zeros(0, complex),
+            vector=np.vstack([v for _, _, v in found]) if found else np.zeros((0, n_vec), complex),
+            outputs=outputs,
+            inputs=inputs,
+        )
+
     def __post_init__(self) -> None:
         order = np.asarray(self.order, dtype=np.int64).reshape(-1)
         pole = np.asarray(self.pole, dtype=np.complex128).reshape(-1)
