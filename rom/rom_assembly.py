@@ -371,13 +371,18 @@ def _hybrid_assembly(
     return ReducedAssembly(K, M, out, labels, meta)
 
 
-def solve_assembly(asm: ReducedAssembly, n_modes: int, *, backend: str = "auto") -> AssemblyModes:
-    """Lowest ``n_modes`` elastic modes of a reduced assembly at its measurement DOFs (rigid modes dropped)."""
+def solve_assembly(
+    asm: ReducedAssembly, n_modes: int, *, backend: str = "auto", overwrite: bool = False
+) -> AssemblyModes:
+    """Lowest ``n_modes`` elastic modes of a reduced assembly at its measurement DOFs (rigid modes dropped).
+
+    ``overwrite=True`` lets a dense eigen-solve destroy ``asm.K`` and ``asm.M`` (one-shot solves only).
+    """
     if sp.issparse(asm.K):
         sol = solve_modes(asm.K, asm.M, n_modes, backend=backend)
         f, shapes = sol.frequencies_hz, sol.shapes
     else:
-        dm = dense_modes(asm.K, asm.M, n_modes)
+        dm = dense_modes(asm.K, asm.M, n_modes, overwrite=overwrite)
         f, shapes = dm.frequencies_hz, dm.shapes
     meas = np.asarray(asm.out @ shapes)
     return AssemblyModes(f, meas, list(asm.meas_labels))
@@ -393,8 +398,12 @@ def solve_d1b(
     delta=None,
     formulation: str = DEFAULT_FORMULATION,
 ) -> AssemblyModes:
-    """Modes of the disk–one-blade ROM (:func:`assemble_d1b` then a dense eigen-solve)."""
-    return solve_assembly(assemble_d1b(disk, blade, pattern, slot, delta=delta, formulation=formulation), n_modes)
+    """Modes of the disk–one-blade ROM (:func:`assemble_d1b` then a dense eigen-solve).
+
+    The assembled matrices are private to this call, so the eigen-solver works on them in place.
+    """
+    asm = assemble_d1b(disk, blade, pattern, slot, delta=delta, formulation=formulation)
+    return solve_assembly(asm, n_modes, overwrite=True)
 
 
 def solve_full(
