@@ -138,9 +138,15 @@ def _cmd_info(args) -> int:
 
 
 def _cmd_modes(args) -> int:
-    bd = build_model(args.level, _parse_grid(args.grid), calibrate=args.calibrate, verbose=not args.json)
+    # --calibrate changes the disk only: the blade needs no calibration solve, and for the free disk the
+    # calibrated modes are the uncalibrated ones times 1090.6 / f₁ (one solve instead of two).
+    calibrate_first = args.calibrate and args.component == "d1b"
+    bd = build_model(args.level, _parse_grid(args.grid), calibrate=calibrate_first, verbose=not args.json)
     with step(f"solving {args.n} modes of the {args.component}", not args.json):
         out = fe_modes(bd, args.component, args.n)
+    if args.calibrate and args.component == "disk":
+        scale = TABLE1_HZ[0] / out["frequencies_hz"][0]
+        out["frequencies_hz"] = [f * scale for f in out["frequencies_hz"]]
     if args.json:
         print_json(out)
         return 0

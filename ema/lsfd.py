@@ -42,6 +42,20 @@ def _basis(poles: np.ndarray, freq_hz: np.ndarray, form: str, residuals: bool) -
     return B
 
 
+def _band_lines(frf: FRFSet, band, per: str, residuals: bool) -> tuple[np.ndarray, np.ndarray]:
+    """Lines of the band (Hz, shape (n_f,)) and the FRFs on them as columns, shape (n_f, n_outputs·n_inputs).
+
+    With residual terms the 0 Hz line is dropped (the lower residual ~ 1/ω² is singular there).
+    """
+    data = band_data(frf, band, per=per)
+    f = data.freq_hz
+    Y = data.H.reshape(frf.n_outputs * frf.n_inputs, -1).T
+    if residuals:
+        nz = f > 0
+        f, Y = f[nz], Y[nz]
+    return f, Y
+
+
 def _solve(B: np.ndarray, Y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Real least squares ``B c = Y`` for complex B (n_freq, n_c) and Y (n_freq, n_y); returns c and fit."""
     A = np.vstack([B.real, B.imag])
@@ -79,12 +93,7 @@ def lsfd(
         Residual terms (zeros when not fitted).
     """
     poles = np.asarray(poles, dtype=np.complex128).reshape(-1)
-    data = band_data(frf, band, per="none")
-    f = data.freq_hz
-    Y = data.H.reshape(frf.n_outputs * frf.n_inputs, -1).T
-    if residuals:
-        nz = f > 0
-        f, Y = f[nz], Y[nz]
+    f, Y = _band_lines(frf, band, "none", residuals)
     B = _basis(poles, f, frf.form, residuals)
     c, _ = _solve(B, Y)
     n = poles.size
@@ -160,12 +169,7 @@ def refine_poles(
     n = poles.size
     if n == 0:
         return poles
-    data = band_data(frf, band, per="frf")
-    f = data.freq_hz
-    Y = data.H.reshape(frf.n_outputs * frf.n_inputs, -1).T
-    if residuals:
-        nz = f > 0
-        f, Y = f[nz], Y[nz]
+    f, Y = _band_lines(frf, band, "frf", residuals)
     n_c = 2 * n + (2 if residuals else 0)
     Yr = np.vstack([Y.real, Y.imag])
     if Yr.shape[1] > n_c:

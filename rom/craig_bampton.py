@@ -164,22 +164,13 @@ class CraigBamptonModel:
         return x
 
 
-def _rotate(R: np.ndarray | None, x: np.ndarray) -> np.ndarray:
-    """Apply block-diagonal node rotations to rows of ``x`` (rows grouped in node triplets)."""
+def _rotate(R: np.ndarray | None, x: np.ndarray, transpose: bool = False) -> np.ndarray:
+    """T x (or Tᵀ x) with T = blockdiag(R_j): node rotations applied to the rows of ``x`` in triplets."""
     if R is None:
         return x
     shp = x.shape
     xr = x.reshape((R.shape[0], 3) + shp[1:])
-    return np.einsum("nij,nj...->ni...", R, xr).reshape(shp)
-
-
-def _rotate_rows_T(R: np.ndarray | None, A: np.ndarray) -> np.ndarray:
-    """Rows of Tᵀ A with T = blockdiag(R_j)."""
-    if R is None:
-        return A
-    shp = A.shape
-    Ar = A.reshape((R.shape[0], 3) + shp[1:])
-    return np.einsum("nji,nj...->ni...", R, Ar).reshape(shp)
+    return np.einsum("nji,nj...->ni..." if transpose else "nij,nj...->ni...", R, xr).reshape(shp)
 
 
 def craig_bampton(
@@ -280,10 +271,10 @@ def craig_bampton(
     # Express the boundary coordinates in the given frames: x_phys = T x_b, T = blockdiag(R_j).
     R = boundary_rotations
     if R is not None:
-        kappa = _rotate_rows_T(R, _rotate_rows_T(R, kappa).T).T
-        mu_bb = _rotate_rows_T(R, _rotate_rows_T(R, mu_bb).T).T
-        mu_be = _rotate_rows_T(R, mu_be)
-        Psi = _rotate_rows_T(R, Psi.T).T
+        kappa = _rotate(R, _rotate(R, kappa, True).T, True).T
+        mu_bb = _rotate(R, _rotate(R, mu_bb, True).T, True).T
+        mu_be = _rotate(R, mu_be, True)
+        Psi = _rotate(R, Psi.T, True).T
 
     # Output rows of R_CB (Eq. 3).
     out = np.zeros(0, np.int64) if output_dofs is None else np.asarray(output_dofs, dtype=np.int64).ravel()
@@ -299,7 +290,7 @@ def craig_bampton(
         else:
             unit = np.zeros(b.size)
             unit[pos_b[d]] = 1.0
-            basis_out[r, Phi.shape[1] :] = _rotate_rows_T(R, unit[:, None])[:, 0] if R is not None else unit
+            basis_out[r, Phi.shape[1] :] = _rotate(R, unit[:, None], True)[:, 0]
     return CraigBamptonModel(
         Lambda=Lambda,
         kappa_bb=kappa,

@@ -74,3 +74,14 @@ def test_help_everywhere(capsys, argv):
         main([*argv, "--help"])
     assert exc.value.code == 0
     assert "usage: bladetwin" in capsys.readouterr().out
+
+
+def test_fe_modes_calibrate_puts_the_first_disk_mode_at_table1(capsys):
+    raw = _json(capsys, ["fe", "modes", "--component", "disk", *SMALL, "--n", "4", "--json"])
+    cal = _json(capsys, ["fe", "modes", "--component", "disk", *SMALL, "--n", "4", "--calibrate", "--json"])
+    assert cal["frequencies_hz"][0] == pytest.approx(1090.6, rel=1e-9)
+    # Calibrating E scales every frequency of the homogeneous disk by one factor.
+    ratio = np.array(cal["frequencies_hz"]) / np.array(raw["frequencies_hz"])
+    np.testing.assert_allclose(ratio, ratio[0], rtol=1e-8)
+    d1b = _json(capsys, ["fe", "modes", "--component", "d1b", *SMALL, "--n", "2", "--calibrate", "--json"])
+    assert len(d1b["frequencies_hz"]) == 2
