@@ -12,20 +12,14 @@ from __future__ import annotations
 
 import contextlib
 import io
-import sys
 import time
 import warnings
-from pathlib import Path
 
-# this script is named ema.py: keep its folder off the import path so that `import ema` finds the package
-_HERE = Path(__file__).resolve().parent
-sys.path[:] = [p for p in sys.path if Path(p or ".").resolve() != _HERE]
-sys.path.insert(0, str(_HERE.parent))
+import _paths  # noqa: F401  (must precede the package imports: this script is named like the package)
+import numpy as np
+from sdypy import EMA
 
-import numpy as np  # noqa: E402
-from sdypy import EMA  # noqa: E402
-
-from ema import FRFSet, lscf, lsrf, select_auto, stabilize  # noqa: E402
+from ema import FRFSet, lscf, lsrf, select_auto, stabilize
 
 N_OUT, N_FREQ, F_MAX = 54, 6400, 3200.0
 ORDERS = list(range(2, 201, 2))

@@ -17,6 +17,8 @@ import multiprocessing as mp
 import resource
 import time
 
+import _paths  # noqa: F401  (benchmarks/rom.py would shadow the rom package)
+
 
 def _child(level: str, component: str, backend: str, n: int, queue) -> None:
     from rom.academic import AcademicParams, build_bladed_disk
@@ -90,9 +92,10 @@ def main() -> None:
                        + ("  → MEETS TARGET" if ok else "  → MISSES TARGET"))
     print("\n" + "\n".join(verdict))
     if args.json:
-        from pathlib import Path
+        from rom.fileio import atomic_path
 
-        Path(args.json).write_text(json.dumps({f"{c}/{b}": r for (c, b), r in rows.items()}, indent=2))
+        with atomic_path(args.json) as tmp:
+            tmp.write_text(json.dumps({f"{c}/{b}": r for (c, b), r in rows.items()}, indent=2))
 
 
 if __name__ == "__main__":

@@ -23,12 +23,10 @@ import sys
 import time
 from pathlib import Path
 
+import _paths  # must precede the package imports: this script is named like the package
 import numpy as np
 
-REPO = Path(__file__).resolve().parents[1]
-# This script is named like the ``rom`` package: keep its own folder off the import path.
-sys.path[:] = [p for p in sys.path if Path(p or ".").resolve() != Path(__file__).resolve().parent]
-sys.path.insert(0, str(REPO))
+REPO = _paths.REPO
 STEPS = ("fe_disk", "rom_disk_cb", "fe_blade", "rom_blade_rubin", "fe_d1b", "rom_d1b", "fe_full", "rom_full")
 LABELS = {
     "fe_disk": "FE free disk, 20 modes",
@@ -176,7 +174,9 @@ def main(argv: list[str] | None = None) -> int:
         print(f"{LABELS[step]:<42s} {r['seconds']:8.2f} s  peak {r['peak_gb']:6.2f} GB "
               f"(model build {r['baseline_gb']:.2f} GB){extra}", flush=True)
     if args.json:
-        with open(args.json, "w") as fh:
+        from rom.fileio import atomic_path
+
+        with atomic_path(args.json) as tmp, open(tmp, "w") as fh:
             json.dump({"level": args.level, "results": results}, fh, indent=1)
     return 0
 

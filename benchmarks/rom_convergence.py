@@ -11,6 +11,7 @@ import json
 import sys
 import time
 
+import _paths  # noqa: F401  (benchmarks/rom.py would shadow the rom package)
 import numpy as np
 
 from rom.academic import AcademicParams, build_bladed_disk
@@ -64,7 +65,9 @@ def main(argv: list[str] | None = None) -> int:
         rows.append(row)
         print(json.dumps(row))
     if args.json:
-        with open(args.json, "w") as fh:
+        from rom.fileio import atomic_path
+
+        with atomic_path(args.json) as tmp, open(tmp, "w") as fh:
             json.dump({"level": args.level, "rows": rows}, fh, indent=1)
     return 0
 
