@@ -39,7 +39,7 @@ from .contact import ContactPattern
 from .craig_bampton import CraigBamptonModel
 from .fe_assembly import AssemblyModes
 from .mistuning import as_delta
-from .modal import dense_modes
+from .modal import dense_modes, single_blas_thread
 from .rubin import RubinModel
 from .solver import solve_modes
 
@@ -202,10 +202,11 @@ def _cb_assembly(
         blade_out.append(acc)
     K = disk.K(out=np.zeros((n, n)))
     M = disk.M(out=np.zeros((n, n)))
+    Kf, Mf = K.reshape(-1), M.reshape(-1)  # views: a flat fancy add is ~2x faster than one through np.ix_
     for Kp, Mp, idx in parts:
-        ix = np.ix_(idx, idx)
-        K[ix] += Kp
-        M[ix] += Mp
+        flat = (idx[:, None] * n + idx).ravel()
+        Kf[flat] += Kp.reshape(-1)
+        Mf[flat] += Mp.reshape(-1)
     n_meas = n_sectors + n_acc * len(parts)
     out = np.zeros((n_meas, n))
     rows = (np.arange(n_sectors) - sector_shift) % n_sectors
@@ -400,10 +401,13 @@ def solve_d1b(
 ) -> AssemblyModes:
     """Modes of the disk–one-blade ROM (:func:`assemble_d1b` then a dense eigen-solve).
 
-    The assembled matrices are private to this call, so the eigen-solver works on them in place.
+    The assembled matrices are private to this call, so the eigen-solver may work on them in place. The
+    whole solve runs with one BLAS thread (:func:`rom.modal.single_blas_thread`): it is memory-bound, and
+    one thread was faster and steadier than two (docs/rom.md §4). Spread many solves over processes.
     """
-    asm = assemble_d1b(disk, blade, pattern, slot, delta=delta, formulation=formulation)
-    return solve_assembly(asm, n_modes, overwrite=True)
+    with single_blas_thread():
+        asm = assemble_d1b(disk, blade, pattern, slot, delta=delta, formulation=formulation)
+        return solve_assembly(asm, n_modes, overwrite=True)
 
 
 def solve_full(
