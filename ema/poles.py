@@ -197,6 +197,7 @@ def single_thread_blas() -> contextlib.AbstractContextManager:
     The order loops of the estimators call LAPACK on many small matrices (a few hundred rows), where
     multi-threaded OpenBLAS is slower than one thread, and dramatically so on a loaded machine
     (measured here: eig of 60 companion matrices of order <= 180 took 14.7 s threaded, 0.47 s single).
+    ``rom.modal.single_thread_blas`` is its floor-1 twin (docs/design.md §8.10).
     """
     try:
         from threadpoolctl import threadpool_limits

@@ -33,7 +33,7 @@ __all__ = [
     "ModePairing",
     "pair_modes",
     "relative_residuals",
-    "single_blas_thread",
+    "single_thread_blas",
 ]
 
 log = logging.getLogger(__name__)
@@ -97,6 +97,11 @@ def _residuals(KX: np.ndarray, MX: np.ndarray, lam: np.ndarray, sigma: float) ->
     return num / np.where(den > 0, den, 1.0)
 
 
+def _rigid(lam: np.ndarray, rigid_lam: float, max_rigid: int) -> np.ndarray:
+    """Mask of the rigid-body eigenvalues: at most the first ``max_rigid`` of ascending ``lam`` below ``rigid_lam``."""
+    return (lam < rigid_lam) & (np.arange(lam.size) < max_rigid)
+
+
 @functools.cache
 def _blas_controller():
     """One threadpoolctl controller (building one scans the loaded libraries: ~0.4 ms each time)."""
@@ -107,8 +112,11 @@ def _blas_controller():
     return ThreadpoolController()
 
 
-def single_blas_thread() -> contextlib.AbstractContextManager:
+def single_thread_blas() -> contextlib.AbstractContextManager:
     """Context that limits BLAS/LAPACK to one thread (threadpoolctl).
+
+    ``ema.poles.single_thread_blas`` is its floor-1 twin: ``rom`` and ``ema`` may not import each other
+    (docs/design.md §1, as for ``fileio.atomic_path``).
 
     Dense reduced models of a few thousand DOFs are memory-bound. On the 2-core reference machine, one
     disk–one-blade solve took 0.12 s steadily with one BLAS thread against 0.17–0.21 s (medians of 15,
@@ -157,7 +165,7 @@ def _block_lanczos(
     X = rng.standard_normal((n, b))
     used = n_kv = 0
     # Thin products with a ~1 500² matrix are memory-bound: one BLAS thread is as fast and far steadier.
-    with single_blas_thread():
+    with single_thread_blas():
         for j in range(max_blocks + 1):
             Vp = V[:, :used]
             for _ in range(2):  # CGS2: a second pass restores orthogonality lost in the first
@@ -183,7 +191,7 @@ def _block_lanczos(
                 # Only the elastic pairs are judged (and returned by the caller). Rigid-body eigenvalues come
                 # out as ±(0.1–0.5) rad²/s² from round-off, which puts a floor of ~3e-7 under their residual
                 # on the reduced blade and disk models.
-                elastic = ~((lam < rigid_lam) & (np.arange(k) < max_rigid))
+                elastic = ~_rigid(lam, rigid_lam, max_rigid)
                 res = float(np.max(_residuals(KVu @ Y[:, elastic], MVu @ Y[:, elastic], lam[elastic], sigma),
                                    initial=0.0))
                 if res <= _LANCZOS_TOL:
@@ -255,7 +263,7 @@ def dense_modes(
             K, M = K.T, M.T
         vals, vecs = sla.eigh(K, M, subset_by_index=[0, k - 1], driver="gvx", check_finite=False,
                               overwrite_a=overwrite, overwrite_b=overwrite)
-    rigid = (vals < lim) & (np.arange(vals.size) < max_rigid)
+    rigid = _rigid(vals, lim, max_rigid)
     el = np.flatnonzero(~rigid)[:n_modes]
     freqs = np.sqrt(np.clip(vals[el], 0.0, None)) / (2 * math.pi)
     return DenseModes(freqs, vecs[:, el], int(rigid.sum()), method)

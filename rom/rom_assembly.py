@@ -39,7 +39,7 @@ from .contact import ContactPattern
 from .craig_bampton import CraigBamptonModel
 from .fe_assembly import AssemblyModes
 from .mistuning import as_delta
-from .modal import dense_modes, single_blas_thread
+from .modal import dense_modes, single_thread_blas
 from .rubin import RubinModel
 from .solver import solve_modes
 
@@ -402,10 +402,10 @@ def solve_d1b(
     """Modes of the disk–one-blade ROM (:func:`assemble_d1b` then a dense eigen-solve).
 
     The assembled matrices are private to this call, so the eigen-solver may work on them in place. The
-    whole solve runs with one BLAS thread (:func:`rom.modal.single_blas_thread`): it is memory-bound, and
+    whole solve runs with one BLAS thread (:func:`rom.modal.single_thread_blas`): it is memory-bound, and
     one thread was faster and steadier than two (docs/rom.md §4). Spread many solves over processes.
     """
-    with single_blas_thread():
+    with single_thread_blas():
         asm = assemble_d1b(disk, blade, pattern, slot, delta=delta, formulation=formulation)
         return solve_assembly(asm, n_modes, overwrite=True)
 
