@@ -10,8 +10,9 @@ import argparse
 import importlib
 import logging
 import sys
+import zipfile
 
-__all__ = ["main", "build_parser"]
+__all__ = ["main", "build_parser", "error_message"]
 
 # Sub-command modules, in help order. Each must define ``register(subparsers) -> None``.
 _COMMAND_MODULES = ("cli_run", "cli_fe", "cli_ema", "cli_rom")
@@ -36,10 +37,24 @@ def main(argv: list[str] | None = None) -> int:
     logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING, format="%(levelname)s %(message)s")
     try:
         return int(args.func(args) or 0)
-    except (ValueError, FileNotFoundError, KeyError) as exc:
-        # User-facing errors: one line, no traceback (the library raises with precise messages).
-        print(f"bladetwin: error: {exc}", file=sys.stderr)
+    except (ValueError, OSError, KeyError, zipfile.BadZipFile, MemoryError) as exc:
+        # User-facing errors: one line, exit code 2, no traceback. The libraries raise EMAError / ROMError
+        # (ValueError subclasses) with messages written for users; the others come from the OS or numpy.
+        print(f"bladetwin: error: {error_message(exc)}", file=sys.stderr)
         return 2
+
+
+def error_message(exc: BaseException) -> str:
+    """One line for the user: the library's message, an OS error with its file, a KeyError without quotes."""
+    if isinstance(exc, OSError) and exc.filename is not None and exc.strerror:
+        text = f"{exc.filename}: {exc.strerror}"
+    elif isinstance(exc, KeyError) and len(exc.args) == 1 and isinstance(exc.args[0], str):
+        text = exc.args[0]  # str(KeyError) adds repr quotes
+    elif isinstance(exc, MemoryError):
+        text = f"out of memory{': ' + str(exc) if str(exc) else ''} (ask for less: a lower --order, fewer modes)"
+    else:
+        text = str(exc) or type(exc).__name__
+    return " ".join(text.split())
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -9,6 +9,8 @@ from pathlib import Path
 
 import numpy as np
 
+from .util import atomic_savefig
+
 __all__ = ["register"]
 
 
@@ -77,14 +79,16 @@ def _print_modes(result, out=None) -> None:
 def _cmd_fit(args: argparse.Namespace) -> int:
     from ema import read_frfs
 
+    if args.plot and Path(args.plot).is_dir():
+        # Refuse before the fit, not after it.
+        raise ValueError(f"--plot {args.plot}: is a directory; expected an image file name such as stab.png")
     frf = read_frfs(args.files, form=args.form)
     result = _fit(frf, args, freqs=args.freqs)
     if args.plot:
         from ema.plots import plot_stabilization
 
         fig = plot_stabilization(result.diagram, frf, selected_hz=result.model.frequency_hz)
-        Path(args.plot).parent.mkdir(parents=True, exist_ok=True)
-        fig.savefig(args.plot, dpi=120)
+        atomic_savefig(fig, args.plot, dpi=120)
     if args.json:
         payload = result.as_dict()
         payload["files"] = [str(f) for f in args.files]
@@ -108,15 +112,23 @@ def _out_dir(args: argparse.Namespace) -> Path:
     return Path(args.out) if args.out else Path("out") / "ema" / Path(args.dir).resolve().name
 
 
-def _emit(table, name: str, args: argparse.Namespace) -> None:
+def _emit(tables: dict, args: argparse.Namespace) -> None:
+    """Write each table as ``<name>.csv`` and print them: text tables, or ONE JSON document for ``--json``.
+
+    The JSON document maps each table's name to pandas' ``split`` layout (``columns``, ``index``, ``data``)
+    and adds ``written``, the CSV paths.
+    """
     from ema import write_table
 
-    path = write_table(table, _out_dir(args) / f"{name}.csv")
+    written = {name: str(write_table(table, _out_dir(args) / f"{name}.csv")) for name, table in tables.items()}
     if args.json:
-        print(table.to_json(orient="split", double_precision=10))
-    else:
-        print(table.to_string(float_format=lambda v: f"{v:.4f}"))
-        print(f"written: {path}", file=sys.stderr)
+        doc = {name: json.loads(table.to_json(orient="split", double_precision=10)) for name, table in tables.items()}
+        doc["written"] = list(written.values())
+        print(json.dumps(doc, indent=2))
+        return
+    for name, table in tables.items():
+        print(f"{name}\n{table.to_string(float_format=lambda v: f'{v:.4f}')}\n")
+        print(f"written: {written[name]}", file=sys.stderr)
 
 
 def _fit_each(args: argparse.Namespace) -> dict:
@@ -135,15 +147,14 @@ def _cmd_blades(args: argparse.Namespace) -> int:
 
     models = _fit_each(args)
     kw = {"freq_window": args.freq_window}
-    _emit(frequency_table(models, **kw), "blade_frequencies", args)
-    _emit(blade_deltas(models, **kw), "blade_deltas", args)
+    _emit({"blade_frequencies": frequency_table(models, **kw), "blade_deltas": blade_deltas(models, **kw)}, args)
     return 0
 
 
 def _cmd_joints(args: argparse.Namespace) -> int:
     from ema import joint_frequencies
 
-    _emit(joint_frequencies(_fit_each(args), freq_window=args.freq_window), "joint_frequencies", args)
+    _emit({"joint_frequencies": joint_frequencies(_fit_each(args), freq_window=args.freq_window)}, args)
     return 0
 
 
@@ -151,7 +162,7 @@ def _cmd_disk(args: argparse.Namespace) -> int:
     from ema import disk_modes, read_frfs
 
     frf = read_frfs(_uff_files(args.dir), form=args.form)
-    _emit(disk_modes(_fit(frf, args).model), "disk_modes", args)
+    _emit({"disk_modes": disk_modes(_fit(frf, args).model)}, args)
     return 0
 
 
@@ -167,7 +178,7 @@ def _cmd_assembly(args: argparse.Namespace) -> int:
          "quality": m.quality if m.quality is not None else np.nan},
         index=pd.Index(np.arange(1, m.n_modes + 1), name="mode"),
     )
-    _emit(table, "assembly_modes", args)
+    _emit({"assembly_modes": table}, args)
     return 0
 
 

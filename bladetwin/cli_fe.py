@@ -8,13 +8,13 @@ import numpy as np
 
 from .util import atomic_savefig, format_table, print_json, step
 
-__all__ = ["register", "build_model", "fe_info", "fe_modes"]
+__all__ = ["register", "add_model_args", "parse_grid", "build_model", "fe_info", "fe_modes", "table1_rows"]
 
 TABLE1_HZ = [1090.6, 1971.1, 2638.1, 3647.6, 4421.5, 5747.6, 5947.9]
 TABLE1_ND = [2, 0, 3, 1, 4, 2, 0]
 
 
-def _level_arg(p: argparse.ArgumentParser) -> None:
+def add_model_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--level", default="default", choices=["coarse", "default", "fine"],
                    help="mesh level (default: %(default)s; coarse is for tests)")
     p.add_argument("--grid", default=None, metavar="ROWSxCOLS",
@@ -28,12 +28,12 @@ def register(sub) -> None:
     fsub.required = True
 
     p = fsub.add_parser("info", help="DOF counts, slots, grid, interface conformity")
-    _level_arg(p)
+    add_model_args(p)
     p.add_argument("--json", action="store_true", help="print JSON instead of a table")
     p.set_defaults(func=_cmd_info)
 
     p = fsub.add_parser("modes", help="lowest elastic modes of the disk, the blade or the disk–one-blade")
-    _level_arg(p)
+    add_model_args(p)
     p.add_argument("--component", default="disk", choices=["disk", "blade", "d1b"],
                    help="disk (free), blade (free) or d1b (disk + blade in slot 1, fully bonded)")
     p.add_argument("--n", type=int, default=10, help="number of elastic modes (default: %(default)s)")
@@ -43,12 +43,12 @@ def register(sub) -> None:
     p.set_defaults(func=_cmd_modes)
 
     p = fsub.add_parser("plot", help="mesh picture with contact grids and measurement nodes")
-    _level_arg(p)
+    add_model_args(p)
     p.add_argument("--out", required=True, help="output image, e.g. mesh.png")
     p.set_defaults(func=_cmd_plot)
 
 
-def _parse_grid(text: str | None):
+def parse_grid(text: str | None):
     if text is None:
         return None
     try:
@@ -118,7 +118,7 @@ def fe_modes(bd, component: str, n: int) -> dict:
 
 
 def _cmd_info(args) -> int:
-    bd = build_model(args.level, _parse_grid(args.grid), verbose=not args.json)
+    bd = build_model(args.level, parse_grid(args.grid), verbose=not args.json)
     info = fe_info(bd)
     if args.json:
         print_json(info)
@@ -141,7 +141,7 @@ def _cmd_modes(args) -> int:
     # --calibrate changes the disk only: the blade needs no calibration solve, and for the free disk the
     # calibrated modes are the uncalibrated ones times 1090.6 / f₁ (one solve instead of two).
     calibrate_first = args.calibrate and args.component == "d1b"
-    bd = build_model(args.level, _parse_grid(args.grid), calibrate=calibrate_first, verbose=not args.json)
+    bd = build_model(args.level, parse_grid(args.grid), calibrate=calibrate_first, verbose=not args.json)
     with step(f"solving {args.n} modes of the {args.component}", not args.json):
         out = fe_modes(bd, args.component, args.n)
     if args.calibrate and args.component == "disk":
@@ -163,7 +163,7 @@ def _cmd_modes(args) -> int:
 def _cmd_plot(args) -> int:
     from rom.plots import plot_mesh
 
-    bd = build_model(args.level, _parse_grid(args.grid))
+    bd = build_model(args.level, parse_grid(args.grid))
     with step("drawing the mesh"):
         fig = plot_mesh(bd)
         path = atomic_savefig(fig, args.out)

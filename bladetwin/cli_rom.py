@@ -15,14 +15,14 @@ from pathlib import Path
 
 import numpy as np
 
-from .cli_fe import _level_arg, _parse_grid, build_model
+from .cli_fe import add_model_args, build_model, parse_grid
 from .util import format_table, print_json, step
 
 __all__ = ["register", "build_roms", "parse_delta"]
 
 
 def _common(p: argparse.ArgumentParser) -> None:
-    _level_arg(p)
+    add_model_args(p)
     p.add_argument("--calibrate", action="store_true", help="calibrate the disk modulus to Table 1 first")
     p.add_argument("--n-cb", type=int, default=None, help="fixed-interface disk modes n_k (default: 100)")
     p.add_argument("--n-free", type=int, default=None, help="free-interface blade modes m (default: 50)")
@@ -73,8 +73,8 @@ def build_roms(args, slot: int = 1, verbose: bool = True):
     from rom.craig_bampton import DEFAULT_N_CB_MODES, reduce_disk
     from rom.rubin import DEFAULT_N_FREE_MODES, reduce_blade
 
-    bd = build_model(args.level, _parse_grid(args.grid), calibrate=args.calibrate, verbose=verbose)
-    bd._check_slot(slot)
+    bd = build_model(args.level, parse_grid(args.grid), calibrate=args.calibrate, verbose=verbose)
+    bd.check_slot(slot)
     n_cb = args.n_cb or DEFAULT_N_CB_MODES
     m = args.n_free or DEFAULT_N_FREE_MODES
     times = {}
@@ -92,26 +92,45 @@ def build_roms(args, slot: int = 1, verbose: bool = True):
     return bd, cb, blade, times
 
 
-def parse_delta(values: list[str] | None, n_blades: int, assembly: str):
-    """``--delta`` values: floats (one blade's δ vector) or one .csv/.npy file with one row per blade."""
+def parse_delta(values: list[str] | None, n_blades: int, assembly: str, m: int):
+    """``--delta`` values: floats (one blade's δ vector) or one .csv/.npy file with one row per blade.
+
+    Checked here, before any model is built, against ``m`` retained blade modes (:func:`rom.mistuning.as_delta`).
+
+    Returns
+    -------
+    None, ndarray of shape (m,) for d1b, or of shape (n_blades, m) for full
+    """
+    from rom.mistuning import as_delta, as_deltas
+
     if not values:
         return None
     if len(values) == 1 and Path(values[0]).suffix.lower() in (".csv", ".npy", ".txt"):
         path = Path(values[0])
+        if path.is_dir():
+            raise ValueError(f"{path}: is a directory; expected a δ file (.csv/.txt or .npy)")
         if not path.exists():
             raise FileNotFoundError(f"delta file not found: {path}")
-        if path.suffix.lower() == ".npy":
-            d = np.load(path, allow_pickle=False)
-        else:
-            d = np.loadtxt(path, delimiter=",", ndmin=2)
+        source = str(path)
+        try:
+            d = np.load(path, allow_pickle=False) if path.suffix.lower() == ".npy" else np.loadtxt(
+                path, delimiter=",", ndmin=2)
+        except (ValueError, OSError, EOFError, UnicodeDecodeError) as exc:
+            raise ValueError(f"{path}: not a readable δ table ({' '.join(str(exc).split())})") from None
         if assembly == "d1b":
             d = np.asarray(d, float).ravel()
-        return d
+    else:
+        source = "--delta"
+        try:
+            d = np.array([float(v) for v in values])
+        except ValueError:
+            raise ValueError(f"--delta takes numbers (fractions) or one .csv/.npy file, got {values}") from None
+        if assembly != "d1b":
+            d = np.tile(d, (n_blades, 1))
     try:
-        d = np.array([float(v) for v in values])
-    except ValueError:
-        raise ValueError(f"--delta takes numbers (fractions) or one .csv/.npy file, got {values}") from None
-    return d if assembly == "d1b" else np.tile(d, (n_blades, 1))
+        return as_delta(d, m) if assembly == "d1b" else as_deltas(d, n_blades, m)
+    except ValueError as exc:
+        raise ValueError(f"{source}: {exc}") from None
 
 
 def _cmd_build(args) -> int:
@@ -134,16 +153,24 @@ def _cmd_build(args) -> int:
 
 
 def _cmd_modes(args) -> int:
+    from rom.academic import AcademicParams
     from rom.contact import ContactPattern
     from rom.pattern_io import load_patterns
     from rom.rom_assembly import DEFAULT_FORMULATION, solve_d1b, solve_full
+    from rom.rubin import DEFAULT_N_FREE_MODES
 
     form = args.formulation or DEFAULT_FORMULATION
     verbose = not args.json
+    # Read and check the user's files before the (minutes-long) model build, not after it.
+    pats = load_patterns(args.pattern) if args.pattern else None
+    grid = tuple(parse_grid(args.grid) or AcademicParams().grid)
+    for k, p in enumerate(pats or []):
+        if p.shape != grid:
+            where = f"{args.pattern}" + (f", joint {k + 1}" if len(pats) > 1 else "")
+            raise ValueError(f"{where}: grid shape {p.shape}, but the model's contact grid is {grid} (--grid)")
+    delta = parse_delta(args.delta, AcademicParams().n_blades, args.assembly, args.n_free or DEFAULT_N_FREE_MODES)
     bd, cb, blade, _ = build_roms(args, 1, verbose=verbose)
-    grid = tuple(bd.params.grid)
-    pats = load_patterns(args.pattern) if args.pattern else [ContactPattern.full(grid)]
-    delta = parse_delta(args.delta, bd.n_slots, args.assembly)
+    pats = pats or [ContactPattern.full(grid)]
     if args.assembly == "d1b":
         if len(pats) != 1:
             raise ValueError(f"--pattern for d1b must hold one pattern, {args.pattern} holds {len(pats)}")

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from .cli_fe import TABLE1_HZ, _level_arg, _parse_grid, build_model, fe_info, fe_modes, table1_rows
+from .cli_fe import TABLE1_HZ, add_model_args, build_model, fe_info, fe_modes, parse_grid, table1_rows
 from .util import atomic_savefig, atomic_write_text, format_table, step
 
 __all__ = ["register"]
@@ -22,7 +22,7 @@ def register(sub) -> None:
                        description="Run the main job. The identification pipeline is not built yet, so this runs "
                                    "the FE demo: model info, first modes, and a mesh picture.")
     p.add_argument("campaign", nargs="?", default=None, help="campaign folder (not used by the FE demo yet)")
-    _level_arg(p)
+    add_model_args(p)
     p.add_argument("--out", default="out/fe_demo", help="output folder (default: %(default)s)")
     p.set_defaults(func=_cmd_run)
 
@@ -48,7 +48,7 @@ def _cmd_run(args) -> int:
     from rom.calibration import calibrate_bladed_disk
     from rom.solver import solve_modes
 
-    bd = build_model(args.level, _parse_grid(args.grid))
+    bd = build_model(args.level, parse_grid(args.grid))
     # One modal solve serves the calibration and Table 1: calibrating E scales every frequency of the
     # homogeneous disk by the same factor, so the calibrated modes are these times 1090.6 / f₁.
     with step("free disk modes, calibrated to 1090.6 Hz, vs paper Table 1"):

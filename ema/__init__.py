@@ -5,7 +5,7 @@ mode shapes and residues (LSFD), MAC and mode pairing, campaign tables. Plots li
 """
 
 from .campaign import blade_deltas, disk_modes, joint_frequencies, nodal_diameters, track_modes, write_table
-from .errors import UFFError
+from .errors import EMAError, UFFError
 from .fit import EMAResult, estimate_poles, fit, local_poles
 from .frf import FRFSet, Nodes, UnitSystem, convert_form, merge_frfsets
 from .lscf import lscf
@@ -19,6 +19,7 @@ from .stabilization import StabilityCriteria, StabilizationDiagram, stabilize
 from .uff import read_frfs, read_modes, read_nodes, read_uff, read_units, write_frfs, write_modes
 
 __all__ = [
+    "EMAError",
     "EMAResult",
     "FRFSet",
     "ModalModel",

@@ -2,10 +2,18 @@
 
 from __future__ import annotations
 
-__all__ = ["UFFError"]
+__all__ = ["EMAError", "UFFError"]
 
 
-class UFFError(ValueError):
+class EMAError(ValueError):
+    """An input the EMA front end refuses, with a one-line message written for the user.
+
+    The command line prints the message as is (exit code 2). It subclasses ``ValueError`` so that callers
+    that already catch ``ValueError`` keep working.
+    """
+
+
+class UFFError(EMAError):
     """A UFF file that cannot be read as requested.
 
     The message is always one line and names the file, the data set index (0-based, in file order) and

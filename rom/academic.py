@@ -30,10 +30,11 @@ from dataclasses import asdict, dataclass, field, replace
 import numpy as np
 
 from .component import Component
+from .errors import ROMError
 from .hex20 import assemble
 from .mesh import StructuredMesh, structured_hex20
 
-__all__ = ["Material", "AcademicParams", "BladedDisk", "build_bladed_disk", "MESH_LEVELS"]
+__all__ = ["Material", "AcademicParams", "BladedDisk", "build_bladed_disk", "check_slot", "MESH_LEVELS"]
 
 #: Mesh resolution per level: cells per tooth half, per slot (hub), hub rings, blade cells through the
 #: thickness, in the shank and along the airfoil span. The contact grid fixes the rim rings and the axial
@@ -198,7 +199,7 @@ class BladedDisk:
 
     def slot_angle(self, slot: int) -> float:
         """Angle of slot ``slot`` (1-based) in rad, from +y towards +x."""
-        self._check_slot(slot)
+        self.check_slot(slot)
         return 2 * math.pi * (slot - 1) / self.n_slots
 
     def slot_rotation(self, slot: int) -> np.ndarray:
@@ -221,9 +222,16 @@ class BladedDisk:
         ]
         return float(max(g.max() for g in gaps))
 
-    def _check_slot(self, slot: int) -> None:
-        if not (isinstance(slot, (int, np.integer)) and 1 <= slot <= self.n_slots):
-            raise ValueError(f"slot must be an integer in 1..{self.n_slots}, got {slot!r}")
+    def check_slot(self, slot: int) -> int:
+        """``slot`` as an int if it names one of this disk's slots (1-based), else :class:`ROMError`."""
+        return check_slot(slot, self.n_slots)
+
+
+def check_slot(slot, n_slots: int) -> int:
+    """``slot`` as an int if it lies in 1..n_slots; otherwise a one-line :class:`ROMError` naming it."""
+    if isinstance(slot, bool) or not isinstance(slot, (int, np.integer)) or not 1 <= slot <= n_slots:
+        raise ROMError(f"slot must be an integer in 1..{n_slots}, got {slot!r}")
+    return int(slot)
 
 
 # ---------------------------------------------------------------------------------------------------

@@ -21,8 +21,13 @@ def _as_bool_grid(name: str, grid) -> np.ndarray:
     if a.ndim != 2:
         raise ValueError(f"contact grid {name} must be 2-D (rows, columns), got shape {a.shape}")
     if a.dtype != bool:
-        if a.dtype.kind not in "iuf" or not np.all(np.isin(a, (0, 1))):
+        if a.dtype.kind not in "iuf":
             raise ValueError(f"contact grid {name} must be boolean (or 0/1), got dtype {a.dtype}")
+        bad = ~np.isin(a, (0, 1))
+        if bad.any():
+            i, j = np.argwhere(bad)[0]
+            raise ValueError(f"contact grid {name} must be boolean (only 0/1), got {a[i, j].item()!r} at row {i + 1}, "
+                             f"column {j + 1} ({int(bad.sum())} such value(s))")
         a = a.astype(bool)
     return a.copy()
 

@@ -321,7 +321,7 @@ def disk_boundary_dofs(bd, slots: Sequence[int]) -> tuple[np.ndarray, np.ndarray
     """
     dofs, rots = [], []
     for s in slots:
-        bd._check_slot(s)
+        bd.check_slot(s)
         nodes = np.concatenate([bd.disk.node_set(f"slot{s}_L").ravel(), bd.disk.node_set(f"slot{s}_R").ravel()])
         dofs.append(bd.disk.dofs_of(nodes).ravel())
         rots.append(np.broadcast_to(bd.slot_rotation(s), (nodes.size, 3, 3)))

@@ -90,7 +90,7 @@ def assemble_fe(bd: BladedDisk, patterns: Mapping[int, ContactPattern]) -> FEAss
     meas_rows = list(3 * bd.disk.node_set("meas") + bd.disk.meta["meas_direction"] - 1)
     meas_labels: list = [("disk", s + 1, 1, 3) for s in range(bd.n_slots)]
     for k, s in enumerate(slots):
-        bd._check_slot(s)
+        bd.check_slot(s)
         pat = patterns[s]
         pat.check_shape(bd.params.grid)
         off = nd + k * nb

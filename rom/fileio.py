@@ -6,6 +6,7 @@
 
 from __future__ import annotations
 
+import errno
 import os
 import tempfile
 from collections.abc import Iterator
@@ -23,6 +24,9 @@ def atomic_path(path: str | os.PathLike) -> Iterator[Path]:
     as it was. The result gets the permissions a plain ``open()`` would give (``mkstemp`` creates 0600).
     """
     path = Path(path)
+    if path.is_dir():
+        # Checked first: os.replace onto a folder fails only after the whole output was written.
+        raise IsADirectoryError(errno.EISDIR, "is a directory; expected a file name", str(path))
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
     os.close(fd)

@@ -24,14 +24,10 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.linalg as sla
 from scipy.linalg.lapack import dpotrf, dpotrs
-from scipy.optimize import linear_sum_assignment
 
 __all__ = [
     "DenseModes",
     "dense_modes",
-    "mac",
-    "ModePairing",
-    "pair_modes",
     "relative_residuals",
     "single_thread_blas",
 ]
@@ -267,83 +263,3 @@ def dense_modes(
     el = np.flatnonzero(~rigid)[:n_modes]
     freqs = np.sqrt(np.clip(vals[el], 0.0, None)) / (2 * math.pi)
     return DenseModes(freqs, vecs[:, el], int(rigid.sum()), method)
-
-
-def mac(A: np.ndarray, B: np.ndarray) -> np.ndarray:
-    """Modal assurance criterion between the columns of ``A`` (n, a) and ``B`` (n, b); shape (a, b)."""
-    A = np.asarray(A, dtype=np.float64)
-    B = np.asarray(B, dtype=np.float64)
-    if A.ndim == 1:
-        A = A[:, None]
-    if B.ndim == 1:
-        B = B[:, None]
-    if A.shape[0] != B.shape[0]:
-        raise ValueError(f"MAC needs shapes on the same DOFs, got {A.shape[0]} and {B.shape[0]} rows")
-    num = np.abs(A.T @ B) ** 2
-    den = np.outer(np.einsum("ij,ij->j", A, A), np.einsum("ij,ij->j", B, B))
-    with np.errstate(invalid="ignore", divide="ignore"):
-        out = np.where(den > 0, num / den, 0.0)
-    return out
-
-
-@dataclass(frozen=True, eq=False)
-class ModePairing:
-    """Result of :func:`pair_modes`.
-
-    Attributes
-    ----------
-    ref_index, test_index : ndarray of int, shape (n_pairs,)
-        Paired columns, sorted by reference index.
-    mac : ndarray, shape (n_pairs,)
-        MAC of each pair.
-    rel_freq_error : ndarray, shape (n_pairs,)
-        (f_test − f_ref) / f_ref of each pair (a fraction).
-    """
-
-    ref_index: np.ndarray
-    test_index: np.ndarray
-    mac: np.ndarray
-    rel_freq_error: np.ndarray
-
-    @property
-    def max_abs_rel_err(self) -> float:
-        return float(np.max(np.abs(self.rel_freq_error))) if self.rel_freq_error.size else float("nan")
-
-    @property
-    def min_mac(self) -> float:
-        return float(np.min(self.mac)) if self.mac.size else float("nan")
-
-
-def pair_modes(
-    f_ref: np.ndarray,
-    shapes_ref: np.ndarray,
-    f_test: np.ndarray,
-    shapes_test: np.ndarray,
-    *,
-    window: float = 0.05,
-) -> ModePairing:
-    """Pair test modes with reference modes by MAC (Hungarian assignment inside a frequency window).
-
-    Every reference mode gets the test mode that maximises the total MAC of the assignment, among test
-    modes whose frequency lies within ``window`` (relative) of it; pairs outside the window get MAC −1 in
-    the assignment so they are used only when nothing else is left.
-
-    Parameters
-    ----------
-    f_ref : ndarray, shape (n_ref,)
-    shapes_ref : ndarray, shape (n_dof, n_ref)
-    f_test : ndarray, shape (n_test,), n_test ≥ n_ref
-    shapes_test : ndarray, shape (n_dof, n_test)
-    window : float
-        Relative frequency window (fraction).
-    """
-    f_ref, f_test = np.asarray(f_ref, float), np.asarray(f_test, float)
-    if f_test.size < f_ref.size:
-        raise ValueError(f"need at least as many test modes as reference modes, got {f_test.size} < {f_ref.size}")
-    C = mac(shapes_ref, shapes_test)
-    rel = (f_test[None, :] - f_ref[:, None]) / f_ref[:, None]
-    score = np.where(np.abs(rel) <= window, C, -1.0)
-    r, c = linear_sum_assignment(score, maximize=True)
-    order = np.argsort(r)
-    r, c = r[order], c[order]
-    return ModePairing(r, c, C[r, c], rel[r, c])

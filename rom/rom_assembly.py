@@ -34,7 +34,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.sparse as sp
 
-from .academic import BladedDisk
+from .academic import BladedDisk, check_slot
 from .contact import ContactPattern
 from .craig_bampton import CraigBamptonModel
 from .fe_assembly import AssemblyModes
@@ -90,12 +90,6 @@ class ReducedAssembly:
 def _check_formulation(formulation: str) -> None:
     if formulation not in FORMULATIONS:
         raise ValueError(f"formulation must be one of {FORMULATIONS}, got {formulation!r}")
-
-
-def _check_slot(slot, n_slots: int) -> int:
-    if isinstance(slot, bool) or not isinstance(slot, (int, np.integer)) or not 1 <= slot <= n_slots:
-        raise ValueError(f"slot must be an integer in 1..{n_slots}, got {slot!r}")
-    return int(slot)
 
 
 def _grid_shape(blade: RubinModel) -> tuple[int, int]:
@@ -250,7 +244,7 @@ def assemble_d1b(
     if len(slots) != 1:
         raise ValueError(f"assemble_d1b needs a disk reduced on exactly one slot, got slots {slots}")
     ref = int(slots[0])
-    slot = ref if slot is None else _check_slot(slot, n_sectors)
+    slot = ref if slot is None else check_slot(slot, n_sectors)
     if slot != ref and not disk.meta.get("cyclic", False):
         raise ValueError(f"the disk model was reduced for slot {ref} and is not marked cyclic; cannot use slot {slot}")
     if delta is not None:
@@ -292,7 +286,7 @@ def assemble_full(
         patterns = {s: patterns for s in range(1, n_slots + 1)}
     pats = dict(patterns)
     for s in pats:
-        _check_slot(s, n_slots)
+        check_slot(s, n_slots)
     missing = sorted(set(range(1, n_slots + 1)) - set(pats))
     if missing:
         raise ValueError(f"patterns must give every slot 1..{n_slots}; missing {missing}")

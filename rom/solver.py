@@ -123,6 +123,11 @@ class ModalSolution:
         return (2 * np.pi * self.frequencies_hz) ** 2
 
 
+def _start_vector(n: int, seed: int = 0) -> np.ndarray:
+    """Deterministic Lanczos start vector: the same model always gives the same modes (design §3)."""
+    return np.random.default_rng(seed).standard_normal(n)
+
+
 def solve_modes(
     K: sp.spmatrix,
     M: sp.spmatrix,
@@ -132,8 +137,15 @@ def solve_modes(
     shift_hz: float = 200.0,
     max_rigid: int = 6,
     rigid_ratio: float = 1e-6,
+    v0: np.ndarray | None = None,
 ) -> ModalSolution:
     """Lowest ``n_modes`` elastic modes of (K, M), rigid-body modes reported apart.
+
+    Lanczos (ARPACK) finds one vector per eigenspace in exact arithmetic, so from an unlucky start vector it
+    can miss one copy of a repeated eigenvalue: a free body's six-fold rigid-body eigenvalue, or a cyclic
+    disk's double nodal-diameter pairs. After the first solve, a second, *deflated* solve on the M-orthogonal
+    complement of the modes found looks for anything left below the highest mode kept; missed modes are
+    added and the check repeats. The result is therefore complete whatever the start vector.
 
     Parameters
     ----------
@@ -144,11 +156,15 @@ def solve_modes(
     backend : str
         Factorization backend, see :func:`factorize`.
     shift_hz : float
-        The shift is σ = −(2π shift_hz)².
+        The shift is σ = −(2π shift_hz)², in (rad/s)².
     max_rigid : int
         Most rigid-body modes expected (6 for a free 3-D body); that many extra modes are computed.
     rigid_ratio : float
-        A mode is rigid when ω² < rigid_ratio · max ω² of the computed set (and below the shift magnitude).
+        A mode is rigid when ω² < rigid_ratio · |σ|. The floor is tied to the shift, not to the highest mode
+        computed, so the rigid count does not depend on ``n_modes`` (with the default 1e-6 and shift 200 Hz:
+        below 0.2 Hz; round-off leaves rigid eigenvalues near eps · |σ| · cond).
+    v0 : ndarray, shape (n,), optional
+        Lanczos start vector; default a fixed pseudo-random vector (seed 0).
     """
     n = K.shape[0]
     if K.shape != M.shape or K.shape[0] != K.shape[1]:
@@ -157,24 +173,64 @@ def solve_modes(
         raise ValueError(f"n_modes must be a positive integer, got {n_modes!r}")
     k = min(n_modes + max_rigid, n - 1)
     sigma = -((2 * math.pi * shift_hz) ** 2)
-    A = (K - sigma * M).tocsr()
-    fac = factorize(A, backend)
-    op = sla.LinearOperator((n, n), matvec=fac.solve, dtype=np.float64)
+    fac = factorize((K - sigma * M).tocsr(), backend)
     try:
-        vals, vecs = sla.eigsh(K, k=k, M=M, sigma=sigma, which="LM", OPinv=op, tol=1e-12)
+        start = _start_vector(n) if v0 is None else np.asarray(v0, dtype=np.float64)
+        vals, vecs = _complete_modes(K, M, sigma, fac, k, start, max_rigid)
     finally:
         fac.free()
-    order = np.argsort(vals)
-    vals, vecs = vals[order], vecs[:, order]
-    # Mass-normalise explicitly (eigsh returns M-orthonormal vectors, but make it exact).
-    vecs = vecs / np.sqrt(np.einsum("ij,ij->j", vecs, M @ vecs))
-    scale = max(abs(vals).max(), 1.0)
-    rigid = (vals < rigid_ratio * scale) & (np.arange(vals.size) < max_rigid)
+    rigid = (vals < rigid_ratio * abs(sigma)) & (np.arange(vals.size) < max_rigid)
     elastic = np.flatnonzero(~rigid)[:n_modes]
     freqs = np.sqrt(np.clip(vals[elastic], 0.0, None)) / (2 * np.pi)
     log.info("solve_modes: %d DOF, %d rigid, %d elastic (%.1f–%.1f Hz)", n, rigid.sum(), elastic.size,
              freqs[0] if freqs.size else 0, freqs[-1] if freqs.size else 0)
     return ModalSolution(freqs, vecs[:, elastic], vecs[:, rigid])
+
+
+def _complete_modes(K, M, sigma: float, fac, k: int, v0: np.ndarray, max_rigid_hint: int = 6, max_rounds: int = 4):
+    """The ``k`` lowest eigenpairs by shift-invert Lanczos, checked for missed copies of repeated eigenvalues.
+
+    Returns
+    -------
+    vals : ndarray, shape (k,)
+        Eigenvalues ω² in (rad/s)², ascending.
+    vecs : ndarray, shape (n, k)
+        Mass-normalised eigenvectors.
+    """
+    n = K.shape[0]
+    op = sla.LinearOperator((n, n), matvec=fac.solve, dtype=np.float64)
+    vals, vecs = sla.eigsh(K, k=k, M=M, sigma=sigma, which="LM", OPinv=op, tol=1e-12, v0=v0)
+    vals, vecs = _sorted_normalised(vals, vecs, M)
+    # A few vectors suffice: Lanczos rarely misses more than one copy per cluster, and each round re-checks.
+    k_check = min(k, max(max_rigid_hint, 2), n - k - 1)
+    for _ in range(max_rounds):
+        if k_check < 1:
+            break
+        # Deflated operator: (K − σM)⁻¹ followed by the M-orthogonal projection away from the modes found.
+        # Its spectrum is the pencil's minus those modes, so any eigenvalue it reports below vals[-1] was missed.
+        MV = M @ vecs
+
+        def deflated(b, V=vecs, MV=MV):
+            y = fac.solve(b)
+            return y - V @ (MV.T @ y)
+
+        dop = sla.LinearOperator((n, n), matvec=deflated, dtype=np.float64)
+        start = v0 - vecs @ (MV.T @ v0)
+        more, more_vecs = sla.eigsh(K, k=k_check, M=M, sigma=sigma, which="LM", OPinv=dop, tol=1e-12, v0=start)
+        missed = more < vals[-1] * (1 - 1e-9) + 1e-9 * abs(sigma)
+        if not missed.any():
+            break
+        log.info("solve_modes: the deflated check found %d missed mode(s) (repeated eigenvalues)", missed.sum())
+        vals, vecs = _sorted_normalised(np.r_[vals, more[missed]], np.c_[vecs, more_vecs[:, missed]], M)
+        vals, vecs = vals[:k], vecs[:, :k]
+    return vals, vecs
+
+
+def _sorted_normalised(vals: np.ndarray, vecs: np.ndarray, M) -> tuple[np.ndarray, np.ndarray]:
+    order = np.argsort(vals)
+    vals, vecs = vals[order], vecs[:, order]
+    # Mass-normalise explicitly (eigsh returns M-orthonormal vectors, but make it exact).
+    return vals, vecs / np.sqrt(np.einsum("ij,ij->j", vecs, M @ vecs))
 
 
 def nodal_diameters(values: np.ndarray) -> np.ndarray:

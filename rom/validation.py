@@ -20,11 +20,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import scipy.sparse as sp
+from scipy.optimize import linear_sum_assignment
 
 from .academic import BladedDisk
 from .contact import ContactPattern
 from .fe_assembly import AssemblyModes, FEAssembly, assemble_fe
-from .modal import ModePairing, pair_modes
 
 __all__ = [
     "fe_assembly_mistuned",
@@ -136,15 +136,48 @@ def compare(name: str, fe: AssemblyModes, rom: AssemblyModes, n: int, *, by_mac:
     if list(fe.meas_labels) != list(rom.meas_labels):
         raise ValueError("FE and ROM measurement labels differ; cannot compare shapes")
     if by_mac:
-        pr: ModePairing = pair_modes(fe.frequencies_hz[:n], fe.meas_shapes[:, :n], rom.frequencies_hz, rom.meas_shapes)
-        j = pr.test_index
-        return Comparison(name, fe.frequencies_hz[:n], rom.frequencies_hz[j], pr.rel_freq_error, pr.mac,
-                          {**meta, "rom_index": j.tolist()})
-    from .modal import mac as _mac
-
+        i, j, m = _assign_by_mac(fe.frequencies_hz[:n], fe.meas_shapes[:, :n], rom.frequencies_hz, rom.meas_shapes)
+        f0, f1 = fe.frequencies_hz[:n][i], rom.frequencies_hz[j]
+        return Comparison(name, f0, f1, (f1 - f0) / f0, m, {**meta, "rom_index": j.tolist()})
     m = np.diag(_mac(fe.meas_shapes[:, :n], rom.meas_shapes[:, :n]))
     f0, f1 = fe.frequencies_hz[:n], rom.frequencies_hz[:n]
     return Comparison(name, f0, f1, (f1 - f0) / f0, m, dict(meta))
+
+
+def _mac(A: np.ndarray, B: np.ndarray) -> np.ndarray:
+    """MAC between the columns of real shapes ``A`` (n, a) and ``B`` (n, b); shape (a, b).
+
+    Private on purpose: the one public test–analysis correlation API is ``ema.mac`` / ``ema.pair_modes``
+    (complex shapes, labelled DOFs). ``rom`` may not import ``ema`` (design §1), and ROM-vs-FE checks only
+    need real shapes on identical DOFs.
+    """
+    num = (A.T @ B) ** 2
+    den = np.outer(np.einsum("ij,ij->j", A, A), np.einsum("ij,ij->j", B, B))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(den > 0, num / den, 0.0)
+
+
+def _assign_by_mac(
+    f_ref: np.ndarray, shapes_ref: np.ndarray, f_test: np.ndarray, shapes_test: np.ndarray, window: float = 0.05
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Forced MAC assignment of every reference (FE) mode to a test (ROM) mode.
+
+    Unlike ``ema.pair_modes``, which reports unpaired modes, a validation must give every FE mode a partner:
+    the Hungarian assignment maximises the total MAC among test modes within ``window`` (relative frequency)
+    and uses pairs outside it (score −1) only when nothing else is left.
+
+    Returns
+    -------
+    ref_index, test_index : ndarray of int, shape (n_ref,)
+    mac : ndarray, shape (n_ref,)
+    """
+    if f_test.size < f_ref.size:
+        raise ValueError(f"need at least as many test modes as reference modes, got {f_test.size} < {f_ref.size}")
+    C = _mac(shapes_ref, shapes_test)
+    rel = (f_test[None, :] - f_ref[:, None]) / f_ref[:, None]
+    r, c = linear_sum_assignment(np.where(np.abs(rel) <= window, C, -1.0), maximize=True)
+    order = np.argsort(r)
+    return r[order], c[order], C[r[order], c[order]]
 
 
 def one_flank_pattern(grid: tuple[int, int], flank: str = "L") -> ContactPattern:

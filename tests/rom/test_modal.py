@@ -11,8 +11,9 @@ import pytest
 import scipy.linalg as sla
 
 import rom.modal as modal
+from ema.mac import mac
 from rom.contact import ContactPattern
-from rom.modal import dense_modes, mac, relative_residuals
+from rom.modal import dense_modes, relative_residuals
 from rom.rom_assembly import assemble_d1b, solve_assembly, solve_d1b
 from rom.solver import solve_modes
 

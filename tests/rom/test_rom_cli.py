@@ -46,8 +46,8 @@ def test_build_modes_and_validate(tmp_path, capsys, monkeypatch):
 def test_bad_delta_and_pattern_arguments(tmp_path, capsys, monkeypatch):
     monkeypatch.setenv("BLADETWIN_CACHE", str(tmp_path / "cache"))
     with pytest.raises(ValueError, match="--delta takes numbers"):
-        cli_rom.parse_delta(["abc"], 18, "d1b")
+        cli_rom.parse_delta(["abc"], 18, "d1b", 50)
     with pytest.raises(FileNotFoundError):
         _run(["rom", "modes", *COMMON, "--assembly", "d1b", "--pattern", str(tmp_path / "none.npz")], capsys)
-    d = cli_rom.parse_delta(["0.01", "0.02"], 18, "full")
-    assert d.shape == (18, 2)
+    d = cli_rom.parse_delta(["0.01", "0.02"], 18, "full", 50)
+    assert d.shape == (18, 50) and np.all(d[:, :2] == [0.01, 0.02]) and not d[:, 2:].any()

@@ -3,9 +3,9 @@
 import numpy as np
 import pytest
 
+from ema.mac import mac
 from rom.contact import ContactPattern
 from rom.fe_assembly import assemble_fe, solve_fe
-from rom.modal import mac
 from rom.rom_assembly import assemble_d1b, solve_d1b
 from rom.validation import fe_assembly_mistuned, one_flank_pattern
 
