@@ -26,9 +26,9 @@ import scipy.linalg as sla
 from tqdm import tqdm
 
 from .frf import FRFSet
-from .poles import PoleSet, band_data, resolve_orders, single_thread_blas
+from .poles import PoleSet, band_data, check_workspace, resolve_orders, single_thread_blas
 
-__all__ = ["lscf"]
+__all__ = ["lscf", "max_supported_order"]
 
 log = logging.getLogger(__name__)
 
@@ -74,6 +74,17 @@ def _power_sums(freq: np.ndarray, X: np.ndarray, p: int) -> tuple[np.ndarray, fl
     return sums, Ts
 
 
+def max_supported_order(n_freq: int, n_outputs: int, n_inputs: int) -> int:
+    """Highest LSCF order p whose least-squares problem has at least as many equations as unknowns.
+
+    Each line gives ``n_o * n_i`` complex equations (``2 n_f n_o n_i`` real ones); the unknowns are the real
+    numerator coefficients ``(p + 1) n_i`` per output and the denominator ``p n_i**2`` (``alpha_p = I``). So
+    ``(p + 1) n_o n_i + p n_i**2 <= 2 n_f n_o n_i``, i.e. ``p <= n_o (2 n_f - 1) / (n_o + n_i)``; this also
+    keeps the Gram matrix R (rank ``<= 2 n_f``) invertible.
+    """
+    return n_outputs * (2 * n_freq - 1) // (n_outputs + n_inputs)
+
+
 def _cholesky(R: np.ndarray) -> np.ndarray:
     try:
         return np.linalg.cholesky(R)
@@ -101,11 +112,13 @@ def lscf(
         Band to fit; default all finite lines.
     max_order : int
         Highest polynomial order p (orders 1..p when ``orders`` is None). Order p holds up to
-        ``p * n_inputs / 2`` modes.
+        ``p * n_inputs / 2`` modes. At most :func:`max_supported_order` of the band's size.
     orders : iterable of int, optional
         Explicit orders, e.g. ``range(2, 201, 2)``.
     normalize : bool
-        Scale each output to unit RMS over the band before fitting (equal weight per output).
+        Scale each output to unit RMS over the band before fitting (equal weight per output). Without it
+        all FRFs are still scaled by one power of two, so that the normal equations neither under- nor
+        overflow: the poles do not depend on the unit of the data.
     progress : bool
         Show a tqdm progress bar on stderr.
 
@@ -114,15 +127,26 @@ def lscf(
     PoleSet
         Poles (rad/s, positive imaginary part, natural frequency within the band) per order, with
         vectors ``vec(psi_r l_r^T)`` (psi: numerator at the pole times l, l: participation factor).
+
+    Raises
+    ------
+    EMAError
+        An order above :func:`max_supported_order` or one whose matrices would not fit in memory (checked
+        before anything large is allocated); the data refusals of :func:`ema.poles.band_data`.
     """
-    order_list = resolve_orders(max_order, orders)
-    data = band_data(frf, band, per="output" if normalize else "none")
+    data = band_data(frf, band, per="output" if normalize else "scalar")
     H = data.H
     n_o, n_i, n_f = H.shape
+    top = max_supported_order(n_f, n_o, n_i)
+    where = f"{', '.join(frf.sources) or 'FRF set'}: LSCF"
+    size = f"{n_f} lines x {n_o} outputs x {n_i} inputs in [{data.band_hz[0]:g}, {data.band_hz[1]:g}] Hz"
+    order_list = resolve_orders(max_order, orders, maximum=top, why=f"{where} on {size}")
     p_max = order_list[-1]
     P = p_max + 1
-    if n_f * n_o * n_i < P * n_i:
-        log.warning("LSCF: %d equations for %d denominator unknowns; the fit is underdetermined", n_f * n_o, P * n_i)
+    # power sums (rows x FFT length, complex), S/W and their complex temporaries, T and G
+    n_series = 1 + n_o * n_i + n_i * n_i
+    check_workspace(16.0 * n_series * 2 * max(n_f, P) + 8.0 * P * P * n_i * (4 * n_o + 2 * n_i),
+                    f"{where} at order {p_max} on {size}")
 
     # Power sums: r (R), s_oi (S) and t_ii' (T), all for powers -p..p.
     flat = H.reshape(n_o * n_i, n_f)
@@ -191,7 +215,8 @@ def lscf(
                 theta = theta.reshape(p + 1, n_o, n_i)
                 Zp = zk[None, :] ** np.arange(p + 1)[:, None]  # (p+1, n_r)
                 Bl = np.einsum("joi,ir,jr->or", theta, lvec, Zp)  # (n_o, n_r)
-                Bl = Bl / data.scale[:, None]
+                # undo the per-output weights relative to each other (vectors are defined up to a scale)
+                Bl = Bl / (data.scale / np.max(data.scale))[:, None]
                 vec = (Bl[:, None, :] * lvec[None, :, :]).reshape(n_o * n_i, lam.size).T if n_i > 1 else Bl.T
                 found.append((p, lam, vec))
             bar.update(1)

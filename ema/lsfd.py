@@ -42,18 +42,22 @@ def _basis(poles: np.ndarray, freq_hz: np.ndarray, form: str, residuals: bool) -
     return B
 
 
-def _band_lines(frf: FRFSet, band, per: str, residuals: bool) -> tuple[np.ndarray, np.ndarray]:
-    """Lines of the band (Hz, shape (n_f,)) and the FRFs on them as columns, shape (n_f, n_outputs·n_inputs).
+def _band_lines(frf: FRFSet, band, per: str, residuals: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Lines of the band (Hz, shape (n_f,)), the scaled FRFs on them as columns, shape (n_f, n_outputs·n_inputs),
+    and the factor each column was multiplied by, shape (n_outputs·n_inputs,) (see :func:`ema.poles.band_data`).
 
     With residual terms the 0 Hz line is dropped (the lower residual ~ 1/ω² is singular there).
     """
     data = band_data(frf, band, per=per)
     f = data.freq_hz
     Y = data.H.reshape(frf.n_outputs * frf.n_inputs, -1).T
+    scale = np.broadcast_to(
+        data.scale.reshape(frf.n_outputs, -1), (frf.n_outputs, frf.n_inputs)
+    ).reshape(-1)
     if residuals:
         nz = f > 0
         f, Y = f[nz], Y[nz]
-    return f, Y
+    return f, Y, scale
 
 
 def _solve(B: np.ndarray, Y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -93,9 +97,12 @@ def lsfd(
         Residual terms (zeros when not fitted).
     """
     poles = np.asarray(poles, dtype=np.complex128).reshape(-1)
-    f, Y = _band_lines(frf, band, "none", residuals)
+    # solved on data brought to unit size by one power of two (exact), then scaled back: residues of
+    # FRFs of 1e-156 or 1e+144 would otherwise under- or overflow in the least-squares solve
+    f, Y, scale = _band_lines(frf, band, "scalar", residuals)
     B = _basis(poles, f, frf.form, residuals)
     c, _ = _solve(B, Y)
+    c = c / scale[None, :]
     n = poles.size
     A = (c[:n] + 1j * c[n : 2 * n]).reshape(n, frf.n_outputs, frf.n_inputs)
     shape = (frf.n_outputs, frf.n_inputs)
@@ -169,7 +176,7 @@ def refine_poles(
     n = poles.size
     if n == 0:
         return poles
-    f, Y = _band_lines(frf, band, "frf", residuals)
+    f, Y, _ = _band_lines(frf, band, "frf", residuals)
     n_c = 2 * n + (2 if residuals else 0)
     Yr = np.vstack([Y.real, Y.imag])
     if Yr.shape[1] > n_c:
@@ -350,8 +357,11 @@ def fit_quality(frf: FRFSet, model: ModalModel, band: tuple[float, float] | None
     syn = synthesize(model, data.freq_hz).H
     ok = np.all(np.isfinite(syn), axis=(0, 1))
     H, S = data.H[:, :, ok], syn[:, :, ok]
-    num = np.sum(np.abs(H - S) ** 2, axis=2)
-    den = np.sum(np.abs(H) ** 2, axis=2)
+    # squares of FRFs of 1e-156 or 1e+144 under- or overflow: divide each FRF by its peak first
+    peak = np.max(np.abs(H), axis=2, keepdims=True)
+    peak = np.where(peak > 0, peak, 1.0)
+    num = np.sum(np.abs((H - S) / peak) ** 2, axis=2)
+    den = np.sum(np.abs(H / peak) ** 2, axis=2)
     return 1.0 - num / np.where(den > 0, den, 1.0)
 
 

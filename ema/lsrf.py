@@ -32,9 +32,9 @@ import numpy as np
 from tqdm import tqdm
 
 from .frf import FRFSet
-from .poles import BandData, PoleSet, band_data, resolve_orders, single_thread_blas
+from .poles import BandData, PoleSet, band_data, check_workspace, resolve_orders, single_thread_blas
 
-__all__ = ["lsrf", "orthonormal_basis", "evaluate_basis"]
+__all__ = ["lsrf", "max_supported_order", "orthonormal_basis", "evaluate_basis"]
 
 log = logging.getLogger(__name__)
 
@@ -122,11 +122,13 @@ def lsrf(
     band : (f_lo, f_hi) in Hz, optional
         Band to fit; default all finite lines.
     max_order : int
-        Highest denominator order n (orders 1..n when ``orders`` is None); order n holds up to n modes.
+        Highest denominator order n (orders 1..n when ``orders`` is None); order n holds up to n modes. At
+        most :func:`max_supported_order` of the band's size.
     orders : iterable of int, optional
         Explicit orders.
     normalize : bool
-        Scale each FRF to unit RMS over the band (equal weight per FRF).
+        Scale each FRF to unit RMS over the band (equal weight per FRF). Without it all FRFs are still
+        scaled by one power of two, so that the normal equations neither under- nor overflow.
     progress : bool
         Show a tqdm progress bar on stderr.
     coefficients : {"real", "complex"}
@@ -148,6 +150,12 @@ def lsrf(
     PoleSet
         Poles (rad/s, positive imaginary part, natural frequency within the band) per order, with the
         numerators at the pole (``N_f(x_r)``, proportional to the residues) as vectors.
+
+    Raises
+    ------
+    EMAError
+        An order above :func:`max_supported_order` or one whose matrices would not fit in memory (checked
+        before anything large is allocated); the data refusals of :func:`ema.poles.band_data`.
 
     Notes
     -----
@@ -174,11 +182,18 @@ def lsrf(
     passes = (0 if real else 2) if reweight is None else int(reweight)
     if passes < 0 or (real and passes):
         raise ValueError(f"reweight {reweight!r}: expected >= 0, and 0 with real coefficients")
-    order_list = resolve_orders(max_order, orders)
-    data = band_data(frf, band, per="frf" if normalize else "none")
+    data = band_data(frf, band, per="frf" if normalize else "scalar")
     n_o, n_i, n_f = data.H.shape
     h = data.H.reshape(n_o * n_i, n_f)
     n_frf = h.shape[0]
+    where = f"{', '.join(frf.sources) or 'FRF set'}: LSRF ({coefficients} coefficients)"
+    size = f"{n_f} lines x {n_frf} FRFs in [{data.band_hz[0]:g}, {data.band_hz[1]:g}] Hz"
+    order_list = resolve_orders(max_order, orders, maximum=max_supported_order(n_f, n_frf, real),
+                                why=f"{where} on {size}")
+    P = order_list[-1] + 1
+    # S_f for every FRF, the basis on the (mirrored) lines, T and G
+    check_workspace(n_frf * P * P * (8.0 if real else 16.0) + 16.0 * n_f * P + 32.0 * P * P,
+                    f"{where} at order {order_list[-1]} on {size}")
     w = 2 * np.pi * data.freq_hz
     w_lo, w_hi = 2 * np.pi * data.band_hz[0], 2 * np.pi * data.band_hz[1]
     if real:
@@ -192,6 +207,21 @@ def lsrf(
         weight = _sk_weight(x, top_roots, weight)
     found, _ = _lsrf_pass(h, x, weight, order_list, real, data, (wc, wh), progress)
     return PoleSet.from_orders("lsrf", data.band_hz, order_list, found, n_frf, frf.outputs, frf.inputs)
+
+
+def max_supported_order(n_freq: int, n_frf: int, real: bool = True) -> int:
+    """Highest LSRF order n whose least-squares problem has at least as many equations as unknowns.
+
+    Every FRF gives ``n_f`` complex equations. Real model: real numerators of ``n + 1`` coefficients per
+    FRF and a real denominator of ``n`` free ones (``a_n = 1``) against ``2 n_f`` real equations per FRF:
+    ``n <= n_frf (2 n_f - 1) / (n_frf + 1)``. Complex model: complex numerators of ``n + 1`` and a
+    denominator of ``n`` free complex coefficients (``D(x0) = 1``) against ``n_f`` complex equations:
+    ``n <= n_frf (n_f - 1) / (n_frf + 1)``. Both also keep the basis (at most as many polynomials as
+    points) defined.
+    """
+    if real:
+        return n_frf * (2 * n_freq - 1) // (n_frf + 1)
+    return n_frf * (n_freq - 1) // (n_frf + 1)
 
 
 def _sk_weight(x: np.ndarray, roots: np.ndarray, previous: np.ndarray | None) -> np.ndarray | None:
@@ -345,7 +375,8 @@ def _lsrf_pass(
             if lam.size:
                 b = S[:, : n + 1, : n + 1] @ a * (2.0 if real else 1.0)  # (n_frf, n+1) numerator coefficients
                 V = evaluate_basis(Hs, xr, n, m_points) * jpow[None, : n + 1]  # (n_r, n+1)
-                num = (V @ b.T) / data.scale.reshape(-1)[None, :]  # (n_r, n_frf)
+                # undo the per-FRF weights relative to each other (vectors are defined up to a scale)
+                num = (V @ b.T) / (data.scale.reshape(-1) / np.max(data.scale))[None, :]  # (n_r, n_frf)
                 found.append((n, lam, num))
         bar.close()
     return found, top_roots

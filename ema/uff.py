@@ -10,6 +10,7 @@ from __future__ import annotations
 import logging
 import os
 import re
+import warnings
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -17,9 +18,9 @@ from typing import Any
 import numpy as np
 import pyuff
 
-from .errors import UFFError
+from .errors import EMAError, UFFError
 from .fileio import atomic_path
-from .frf import DOF, FRF_FORMS, FRFSet, Nodes, UnitSystem, merge_frfsets
+from .frf import DOF, FRF_FORMS, FRFSet, Nodes, UnitSystem, line_ranges, merge_frfsets
 from .modal import ModalModel
 
 __all__ = [
@@ -76,9 +77,113 @@ _ABSCISSA_TYPES = {0: "unknown", 17: "time", 18: "frequency"}
 
 
 # --------------------------------------------------------------------------------------------- reading
+# pyuff's rule for a data set delimiter: "    -1" followed by the end of the file, a line break, or 74 blanks.
+_DELIMITER = b"    -1"
+
+
+def _delimiters(raw: bytes) -> list[int]:
+    """Byte offsets of the data set delimiters, found exactly as pyuff finds them (so blocks pair the same)."""
+    out = []
+    n = len(raw)
+    pos = raw.find(_DELIMITER)
+    while pos != -1:
+        end = pos + len(_DELIMITER)
+        if end == n or raw[end] in (10, 13) or (end + 74 < n and raw[end : end + 74] == b" " * 74):
+            out.append(pos)
+        pos = raw.find(_DELIMITER, pos + 1)
+    return out
+
+
+def _block_type(raw: bytes, start: int) -> str:
+    """The type field of the data set that starts at delimiter offset ``start`` ("58b", "2411" or "?")."""
+    lines = raw[start : start + 200].splitlines()
+    field = lines[1][:7].decode("ascii", errors="replace").strip() if len(lines) > 1 else ""
+    return field if re.fullmatch(r"\d+b?", field) else "?"
+
+
+def _line_no(raw: bytes, offset: int) -> int:
+    return raw.count(b"\n", 0, offset) + 1
+
+
+# Values per point (even / uneven abscissa) and bytes per value of the UFF 58 ordinate data types.
+_VALUES_PER_POINT = {2: (1, 2), 4: (1, 2), 5: (2, 3), 6: (2, 3)}
+_VALUE_BYTES = {2: 4, 4: 8, 5: 4, 6: 8}
+
+
+def _check_58b(path: Path, raw: bytes, start: int, end: int, index: int) -> None:
+    """Refuse a binary 58b data set whose payload is shorter or longer than its header announces.
+
+    The payload must hold ``num_pts`` points of the ordinate data type (record 7); the ID line's byte count
+    must not exceed it. pyuff's own writer states ``num_pts * value size`` there even for complex data (half
+    the payload), so a byte count below the payload is accepted; one above it means lost bytes. A line break
+    before the closing delimiter (a common exporter habit that pyuff tolerates) is allowed.
+    """
+    block = raw[start:end]
+    lines = block.splitlines(True)
+    if len(lines) < 13:
+        raise UFFError(str(path), f"binary 58b data set has {len(lines) - 1} header lines, expected 12 (truncated)",
+                       index)
+    header = b"".join(lines[:13])
+    payload = len(block) - len(header)
+    id_line, rec7 = lines[1].decode("ascii", "replace"), lines[8].decode("ascii", "replace")
+    try:
+        n_bytes = int(id_line[31:43])
+        ord_type, num_pts, spacing = int(rec7[0:10]), int(rec7[10:20]), int(rec7[20:30])
+    except ValueError as exc:
+        raise UFFError(str(path), f"malformed binary 58b header ({exc})", index, "num_pts") from exc
+    if ord_type not in _VALUE_BYTES:
+        return  # pyuff refuses it when reading, with its own message
+    expected = num_pts * _VALUES_PER_POINT[ord_type][0 if spacing else 1] * _VALUE_BYTES[ord_type]
+    extra = payload - expected
+    if extra == 0 or (extra in (1, 2) and block[len(block) - extra :] in (b"\n", b"\r\n", b"\r")):
+        if n_bytes <= expected:
+            return
+        raise UFFError(str(path), f"header announces {n_bytes} data bytes but the data set holds {expected}"
+                       " (truncated or damaged file)", index, "n_bytes")
+    raise UFFError(
+        str(path), f"header announces {num_pts} points ({expected} data bytes) but the data set holds {payload} bytes"
+        " (truncated or damaged file)", index, "num_pts",
+    )
+
+
+def _check_structure(path: Path, raw: bytes, marks: list[int]) -> None:
+    """Refuse files that end inside a data set, and binary 58b data sets of the wrong length.
+
+    pyuff pairs delimiters two by two and silently drops a last data set that has no closing delimiter (a
+    truncated file, or one that lost its final ``-1`` line), so such a file would be read as a smaller,
+    seemingly whole one. ``marks`` are the delimiters (:func:`_delimiters`).
+    """
+    if len(marks) % 2:
+        start = marks[-1]
+        raise UFFError(
+            str(path),
+            f"the last data set (type {_block_type(raw, start)}, from line {_line_no(raw, start)}) has no closing"
+            " '-1' line: the file is truncated or damaged",
+            len(marks) // 2,
+        )
+    for index, (start, end) in enumerate(zip(marks[::2], marks[1::2], strict=True)):
+        if _block_type(raw, start) == "58b":
+            _check_58b(path, raw, start, end, index)
+
+
 def _open(path: Path) -> tuple[Any, np.ndarray]:
-    if not path.is_file():
+    if path.is_dir():
+        raise UFFError(str(path), "is a directory, expected a UFF file")
+    if not path.exists():
         raise FileNotFoundError(f"{path}: no such file")
+    if not path.is_file():
+        raise UFFError(str(path), "not a regular file, expected a UFF file")
+    try:
+        raw = path.read_bytes()
+    except OSError as exc:
+        raise UFFError(str(path), f"cannot be read ({exc.strerror or exc})") from exc
+    if not raw or raw.isspace():
+        raise UFFError(str(path), "empty file, expected UFF data sets")
+    marks = _delimiters(raw)
+    if not marks:
+        what = "binary data" if b"\0" in raw[:4096] else "text"
+        raise UFFError(str(path), f"not a UFF file: {what} without any '-1' data set delimiter line")
+    _check_structure(path, raw, marks)
     try:
         uff = pyuff.UFF(str(path))
         types = np.asarray(uff.get_set_types(), dtype=int).reshape(-1)
@@ -138,8 +243,8 @@ def _frf_from_set(
     num_pts = int(dset.get("num_pts", data.size))
     if data.size != num_pts or x.size != num_pts:
         raise UFFError(
-            str(path), f"header announces {num_pts} points but {data.size} values and {x.size} abscissae were read",
-            index, "num_pts",
+            str(path), f"header announces {num_pts} points but {data.size} values and {x.size} abscissae were read"
+            " (short or damaged data set)", index, "num_pts",
         )
     if not np.iscomplexobj(data):
         raise UFFError(
@@ -240,7 +345,22 @@ def read_units(path: str | os.PathLike) -> UnitSystem | None:
     return None
 
 
-def read_uff(path: str | os.PathLike, form: str | None = None, skip_other: bool = False) -> FRFSet:
+def _signal_problem(h: np.ndarray) -> str | None:
+    """Why one FRF carries no signal (all zero, or one constant value on every finite line), else None."""
+    finite = h[np.isfinite(h)]
+    if finite.size == 0:
+        return "no finite value"
+    if not np.any(finite != 0):
+        return "every value is zero: the FRF carries no signal"
+    # a few rounding units of the values themselves: only a truly constant record is refused
+    if np.all(np.abs(finite - finite[0]) <= 4 * np.finfo(np.float64).eps * np.abs(finite[0])):
+        return f"every value is {complex(finite[0]):.6g}: a constant FRF carries no signal"
+    return None
+
+
+def read_uff(
+    path: str | os.PathLike, form: str | None = None, skip_other: bool = False, nonfinite: str = "refuse"
+) -> FRFSet:
     """Read the FRFs (UFF 58 / 58b, function type 4) of one file into an :class:`FRFSet`.
 
     Parameters
@@ -253,6 +373,10 @@ def read_uff(path: str | os.PathLike, form: str | None = None, skip_other: bool 
         Skip data sets 58 that are not FRFs (coherence, spectra ...) instead of refusing the file, as
         long as at least one FRF is present. Other data set types (nodes, units, geometry) are always
         accepted alongside.
+    nonfinite : {"refuse", "drop"}
+        What to do with NaN or infinite values: refuse the file (default), or remove the lines that hold
+        them from every FRF, with a warning naming the data sets and frequencies dropped. A non-finite 0 Hz
+        line is kept either way (it is left out of fits; see :class:`~ema.frf.FRFSet`).
 
     Returns
     -------
@@ -263,12 +387,17 @@ def read_uff(path: str | os.PathLike, form: str | None = None, skip_other: bool 
     ------
     UFFError
         No FRF in the file, a non-FRF or unsupported 58 data set, inconsistent axes or forms, duplicate or
-        missing (response, reference) pairs, or a malformed data set.
+        missing (response, reference) pairs, a malformed data set, a file that ends inside a data set
+        (truncated, or without its final ``-1``), a binary data set shorter than its header says, non-finite
+        values (with ``nonfinite="refuse"``), an FRF that is zero or constant on every line, or a path that
+        is a directory.
     FileNotFoundError
         ``path`` does not exist.
     """
     if form is not None and form not in FRF_FORMS:
         raise ValueError(f"form {form!r} not one of {sorted(FRF_FORMS)}")
+    if nonfinite not in ("refuse", "drop"):
+        raise ValueError(f"nonfinite {nonfinite!r}: expected 'refuse' or 'drop'")
     path = Path(path)
     uff, types = _open(path)
     idx58 = [i for i, t in enumerate(types) if t == 58]
@@ -326,6 +455,11 @@ def read_uff(path: str | os.PathLike, form: str | None = None, skip_other: bool 
             "pairs present; split it into files that each hold a full matrix",
             None, "ref_node",
         )
+    for (o, i), index in seen.items():
+        why = _signal_problem(H[o, i])
+        if why is not None:
+            raise UFFError(str(path), f"FRF {outputs[o]} / {inputs[i]}: {why}", index, "data")
+    x0, H = _nonfinite(path, x0, H, seen, nonfinite)
     nodes = read_nodes(path) if any(t in (15, 2411) for t in types) else None
     units = read_units(path) if 164 in types else None
     return FRFSet(
@@ -341,7 +475,35 @@ def read_uff(path: str | os.PathLike, form: str | None = None, skip_other: bool 
     )
 
 
-def read_frfs(paths: Sequence[str | os.PathLike], form: str | None = None, skip_other: bool = False) -> FRFSet:
+def _nonfinite(
+    path: Path, freq: np.ndarray, H: np.ndarray, seen: dict[tuple[int, int], int], policy: str
+) -> tuple[np.ndarray, np.ndarray]:
+    """Refuse (or, with ``policy="drop"``, cut out with a warning) the lines that hold non-finite values."""
+    bad = ~np.isfinite(H)
+    bad[:, :, freq == 0] = False  # a non-finite 0 Hz line is legitimate (see FRFSet) and never fitted
+    if not bad.any():
+        return freq, H
+    hit = sorted((index, key) for key, index in seen.items() if bad[key].any())
+    index, (o, i) = hit[0]
+    others = f" (and {len(hit) - 1} more data sets)" if len(hit) > 1 else ""
+    if policy == "refuse":
+        raise UFFError(
+            str(path), f"non-finite values (NaN or inf) on {line_ranges(freq, bad[o, i])}{others}; refusing the"
+            " file rather than fitting without those lines", index, "data",
+        )
+    drop = bad.any(axis=(0, 1))
+    if int((~drop).sum()) < 2:
+        raise UFFError(str(path), f"non-finite values on {line_ranges(freq, drop)}: fewer than 2 lines left", index,
+                       "data")
+    msg = (f"{path}: dropped {line_ranges(freq, drop)} from every FRF: non-finite values in data set"
+           f"{'s' if len(hit) > 1 else ''} {', '.join(str(k) for k, _ in hit)}")
+    warnings.warn(msg, stacklevel=3)
+    return freq[~drop], H[:, :, ~drop]
+
+
+def read_frfs(
+    paths: Sequence[str | os.PathLike], form: str | None = None, skip_other: bool = False, nonfinite: str = "refuse"
+) -> FRFSet:
     """Read several UFF files and merge them into one :class:`FRFSet` (roving hammer / response).
 
     See :func:`read_uff` and :func:`ema.frf.merge_frfsets`.
@@ -349,7 +511,7 @@ def read_frfs(paths: Sequence[str | os.PathLike], form: str | None = None, skip_
     paths = [Path(p) for p in paths]
     if not paths:
         raise ValueError("read_frfs: no files given")
-    sets = [read_uff(p, form=form, skip_other=skip_other) for p in paths]
+    sets = [read_uff(p, form=form, skip_other=skip_other, nonfinite=nonfinite) for p in paths]
     if len(sets) == 1:
         return sets[0]
     return merge_frfsets(sets)
@@ -428,12 +590,32 @@ def write_frfs(path: str | os.PathLike, frf: FRFSet, binary: bool = True, id1: s
     id1 : str
         First ID line of every data set.
 
+    Raises
+    ------
+    EMAError
+        A NaN or infinite value on a line above 0 Hz: UFF has no code for a missing value, and pyuff would
+        write 0 (or the largest double) in its place.
+
     Notes
     -----
     The frequency axis is written as even spacing only when the ASCII header's ``%13.5e`` minimum and
-    increment rebuild it exactly; otherwise every abscissa is written with the values.
+    increment rebuild it exactly; otherwise every abscissa is written with the values. A 0 Hz line with a
+    non-finite value (a receptance converted from another form, a synthesis with residual terms) is left
+    out of the file, as it is left out of every fit.
     """
     path = Path(path)
+    bad = ~np.isfinite(frf.H)
+    if bad.any():
+        dc = frf.freq_hz == 0
+        wrong = bad & ~dc
+        if wrong.any():
+            o, i = (int(k) for k in np.argwhere(wrong.any(axis=2))[0])
+            raise EMAError(
+                f"{path}: cannot write FRF {frf.outputs[o]} / {frf.inputs[i]}: non-finite values on "
+                f"{line_ranges(frf.freq_hz, wrong[o, i])}; UFF has no code for a missing value"
+            )
+        log.info("%s: 0 Hz line left out (non-finite values there)", path)
+        frf = frf.band(float(frf.freq_hz[~dc][0]), float(frf.freq_hz[-1]))
     freq = frf.freq_hz
     even = _even_axis(freq)
     units = frf.units or _FORM_UNITS[frf.form]
