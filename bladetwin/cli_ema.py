@@ -15,9 +15,9 @@ __all__ = ["register"]
 
 
 def _add_fit_options(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--method", choices=("lscf", "lsrf"), default=None,
-                   help="pole estimator (default: lscf; lsrf when --bands > 1, because LSCF is poorly conditioned "
-                        "on narrow bands high in frequency, docs/ema.md)")
+    p.add_argument("--method", choices=("lscf", "lsrf"), default="lsrf",
+                   help="pole estimator (default: lsrf, the library's default: it separates close modes at every "
+                        "order and stays conditioned on narrow bands; docs/ema.md)")
     p.add_argument("--band", nargs=2, type=float, metavar=("F1", "F2"), help="band in Hz (default: all lines)")
     p.add_argument("--order", type=int, default=60, help="highest model order (default 60)")
     p.add_argument("--bands", type=int, default=1, help="fit band by band in this many sub-bands (dense spectra)")
@@ -36,8 +36,6 @@ def _criteria(args: argparse.Namespace):
 
 
 def _method(args: argparse.Namespace) -> str:
-    if args.method is None:
-        return "lsrf" if args.bands > 1 else "lscf"
     if args.method == "lscf" and args.bands > 1:
         print("bladetwin: warning: LSCF band-by-band fitting is poorly conditioned on narrow bands; "
               "--method lsrf recovers far more modes on dense spectra (docs/ema.md)", file=sys.stderr)

@@ -4,14 +4,22 @@ UFF I/O, FRF sets, pole estimation (LSCF, LSRF, local fitting), stabilization di
 mode shapes and residues (LSFD), MAC and mode pairing, campaign tables. Plots live in ``ema.plots``.
 """
 
-from .campaign import blade_deltas, disk_modes, joint_frequencies, nodal_diameters, track_modes, write_table
+from .campaign import (
+    blade_deltas,
+    disk_modes,
+    joint_frequencies,
+    nodal_diameter_purity,
+    nodal_diameters,
+    track_modes,
+    write_table,
+)
 from .errors import EMAError, UFFError
-from .fit import EMAResult, estimate_poles, fit, local_poles
+from .fit import EMAResult, estimate_poles, fit, local_poles, mode_dominance
 from .frf import FRFSet, Nodes, UnitSystem, convert_form, merge_frfsets
 from .lscf import lscf
 from .lsfd import dominance, fit_quality, lsfd, modal_model, refine_poles, synthesize
 from .lsrf import lsrf
-from .mac import ModePairing, automac, mac, pair_modes
+from .mac import ModePairing, automac, distinct_mac, mac, mac_paired, pair_modes
 from .modal import ModalModel
 from .poles import PoleSet
 from .selection import PoleSelection, select_auto, select_near, select_picks
@@ -35,6 +43,7 @@ __all__ = [
     "blade_deltas",
     "convert_form",
     "disk_modes",
+    "distinct_mac",
     "dominance",
     "estimate_poles",
     "fit",
@@ -45,8 +54,11 @@ __all__ = [
     "lsfd",
     "lsrf",
     "mac",
+    "mac_paired",
     "merge_frfsets",
     "modal_model",
+    "mode_dominance",
+    "nodal_diameter_purity",
     "nodal_diameters",
     "pair_modes",
     "read_frfs",

@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from .errors import EMAError
 from .fileio import atomic_path
 from .mac import pair_modes
 from .modal import ModalModel
@@ -19,6 +20,7 @@ __all__ = [
     "blade_deltas",
     "joint_frequencies",
     "nodal_diameters",
+    "nodal_diameter_purity",
     "disk_modes",
     "write_table",
 ]
@@ -46,10 +48,10 @@ def track_modes(
     """
     names = list(models)
     if not names:
-        raise ValueError("track_modes: no models given")
+        raise EMAError("track_modes: no models given")
     ref = names[0] if reference is None else reference
     if ref not in models:
-        raise KeyError(f"reference {ref!r} not among {names}")
+        raise EMAError(f"reference {ref!r} not among {names}")
     ref_model = models[ref].sorted()
     cols = [f"M{k + 1}" for k in range(ref_model.n_modes)]
     table = pd.DataFrame(-1, index=pd.Index(names, name="specimen"), columns=cols, dtype=int)
@@ -111,37 +113,61 @@ def joint_frequencies(models: Mapping[str, ModalModel], **kwargs) -> pd.DataFram
     return out
 
 
-def nodal_diameters(shapes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def nodal_diameters(shapes: np.ndarray) -> np.ndarray:
     """Nodal diameter of disk modes from one out-of-plane point per sector (spatial DFT over the sectors).
 
     Parameters
     ----------
-    shapes : ndarray, shape (n_sectors, n_modes)
-        Out-of-plane shape values at equally spaced points, in angular order.
+    shapes : ndarray, shape (n_sectors, n_modes) or (n_sectors,)
+        Out-of-plane shape values at equally spaced points, in angular order (real or complex).
 
     Returns
     -------
-    nd : ndarray of int, shape (n_modes,)
-        Harmonic 0..n_sectors//2 with the largest energy (harmonics k and N - k folded together).
-    purity : ndarray, shape (n_modes,)
-        Fraction of the shape's energy in that harmonic.
+    ndarray of int, shape (n_modes,)
+        Harmonic 0..n_sectors//2 with the largest energy (harmonics k and N - k folded together). The
+        fraction of the energy in that harmonic is :func:`nodal_diameter_purity`.
+
+    Raises
+    ------
+    EMAError
+        Fewer than two sector points.
     """
+    return _harmonics(shapes)[0]
+
+
+def nodal_diameter_purity(shapes: np.ndarray) -> np.ndarray:
+    """Fraction of each disk mode's energy in its nodal diameter (see :func:`nodal_diameters`).
+
+    Parameters
+    ----------
+    shapes : ndarray, shape (n_sectors, n_modes) or (n_sectors,)
+
+    Returns
+    -------
+    ndarray, shape (n_modes,)
+        In (0, 1]; 1 for a pure ``cos(n theta + psi)`` pattern.
+    """
+    return _harmonics(shapes)[1]
+
+
+def _harmonics(shapes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Nodal diameter (int) and purity of each column, shapes (n_modes,) both."""
     phi = np.asarray(shapes, dtype=np.complex128)
     if phi.ndim == 1:
         phi = phi[:, None]
     N = phi.shape[0]
-    if N < 2:
-        raise ValueError(f"nodal_diameters: {N} sector points; expected at least 2")
+    if phi.ndim != 2 or N < 2:
+        raise EMAError(f"nodal_diameters: shapes of shape {np.shape(shapes)}; expected (n_sectors >= 2, n_modes)")
     # real and imaginary parts are two standing waves; sum their harmonic energies
     energy = np.abs(np.fft.fft(phi.real, axis=0)) ** 2 + np.abs(np.fft.fft(phi.imag, axis=0)) ** 2
     half = N // 2
     folded = np.zeros((half + 1, phi.shape[1]))
     for k in range(N):
         folded[min(k, N - k)] += energy[k]
-    nd = np.argmax(folded, axis=0)
+    nd = np.argmax(folded, axis=0).astype(int)
     total = folded.sum(axis=0)
     purity = folded[nd, np.arange(phi.shape[1])] / np.where(total > 0, total, 1.0)
-    return nd.astype(int), purity
+    return nd, purity
 
 
 def disk_modes(model: ModalModel, sector_dofs: list[tuple[int, int]] | None = None) -> pd.DataFrame:
@@ -165,9 +191,9 @@ def disk_modes(model: ModalModel, sector_dofs: list[tuple[int, int]] | None = No
         lookup = {d: k for k, d in enumerate(model.dofs)}
         missing = [d for d in sector_dofs if tuple(d) not in lookup]
         if missing:
-            raise KeyError(f"sector DOFs {missing} not in the model's DOFs")
+            raise EMAError(f"sector DOFs {missing} not in the model's DOFs")
         rows = np.array([lookup[tuple(d)] for d in sector_dofs])
-    nd, purity = nodal_diameters(model.shapes[rows])
+    nd, purity = _harmonics(model.shapes[rows])
     return pd.DataFrame(
         {
             "frequency_hz": model.frequency_hz,

@@ -1,4 +1,8 @@
-"""Modal assurance criterion and mode pairing."""
+"""Modal assurance criterion and mode pairing.
+
+:func:`mac` (matrix) and :func:`mac_paired` (row by row) are the one MAC implementation of ``ema``; the
+stabilization, the selection and the band-by-band merge all call them.
+"""
 
 from __future__ import annotations
 
@@ -7,14 +11,33 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
+from .errors import EMAError
 from .frf import DOF
 from .modal import ModalModel
 
-__all__ = ["mac", "automac", "common_dofs", "ModePairing", "pair_modes"]
+__all__ = ["mac", "mac_paired", "distinct_mac", "automac", "common_dofs", "ModePairing", "pair_modes"]
+
+
+def _unit_max(x: np.ndarray, axis: int) -> tuple[np.ndarray, np.ndarray]:
+    """``x`` divided by its largest magnitude along ``axis`` (zero vectors stay zero), and its squared norms.
+
+    The MAC is scale-free, so this changes nothing in exact arithmetic; it keeps ``|x|**2`` from
+    under- or overflowing for shapes of any magnitude (1e-156 or 1e+144 squared is out of float64 range).
+    """
+    big = np.max(np.abs(x), axis=axis, keepdims=True) if x.size else np.ones_like(x, dtype=float)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        y = np.where(big > 0, x / np.where(big > 0, big, 1.0), 0.0)
+    return y, np.sum(np.abs(y) ** 2, axis=axis)
+
+
+def _ratio(cross: np.ndarray, norm_a: np.ndarray, norm_b: np.ndarray) -> np.ndarray:
+    """``|cross|**2 / (norm_a * norm_b)``, 0 where a vector is zero."""
+    den = norm_a * norm_b
+    return np.where(den > 0, np.abs(cross) ** 2 / np.where(den > 0, den, 1.0), 0.0)
 
 
 def mac(phi_a: np.ndarray, phi_b: np.ndarray) -> np.ndarray:
-    """Modal assurance criterion between two sets of shapes.
+    """Modal assurance criterion between two sets of shapes (columns).
 
     Parameters
     ----------
@@ -24,17 +47,63 @@ def mac(phi_a: np.ndarray, phi_b: np.ndarray) -> np.ndarray:
     Returns
     -------
     ndarray, shape (n_a, n_b)
-        ``|phi_a^H phi_b|^2 / ((phi_a^H phi_a)(phi_b^H phi_b))``, always 2-D; 0 where a shape is zero.
+        ``|phi_a^H phi_b|^2 / ((phi_a^H phi_a)(phi_b^H phi_b))``, always 2-D; 0 where a shape is zero. Each
+        shape is scaled by its largest magnitude first, so any finite scale gives the same value.
+
+    Raises
+    ------
+    EMAError
+        Shapes that are not (n_dof, n_modes) arrays with the same n_dof.
     """
     a = np.asarray(phi_a, dtype=np.complex128)
     b = np.asarray(phi_b, dtype=np.complex128)
     a = a[:, None] if a.ndim == 1 else a
     b = b[:, None] if b.ndim == 1 else b
     if a.ndim != 2 or b.ndim != 2 or a.shape[0] != b.shape[0]:
-        raise ValueError(f"mac: shapes {a.shape} and {b.shape} must be (n_dof, n_modes) with the same n_dof")
-    num = np.abs(a.conj().T @ b) ** 2
-    den = np.outer(np.sum(np.abs(a) ** 2, axis=0), np.sum(np.abs(b) ** 2, axis=0))
-    return np.where(den > 0, num / np.where(den > 0, den, 1.0), 0.0)
+        raise EMAError(f"mac: shapes {a.shape} and {b.shape} must be (n_dof, n_modes) with the same n_dof")
+    a, na = _unit_max(a, axis=0)
+    b, nb = _unit_max(b, axis=0)
+    return _ratio(a.conj().T @ b, na[:, None], nb[None, :])
+
+
+def mac_paired(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """MAC of each row of ``a`` with the same row of ``b`` (the diagonal of ``mac(a.T, b.T)``, without the rest).
+
+    Parameters
+    ----------
+    a, b : ndarray, shape (n, n_vec)
+        Vectors as rows, e.g. pole vectors of a :class:`ema.poles.PoleSet` (mode shapes of a
+        :class:`ema.modal.ModalModel` are columns: pass ``shapes.T``).
+
+    Returns
+    -------
+    ndarray, shape (n,)
+        Scale-safe as :func:`mac`; 0 where a vector is zero.
+
+    Raises
+    ------
+    EMAError
+        ``a`` and ``b`` not two 2-D arrays of the same shape.
+    """
+    a = np.asarray(a, dtype=np.complex128)
+    b = np.asarray(b, dtype=np.complex128)
+    if a.ndim != 2 or a.shape != b.shape:
+        raise EMAError(f"mac_paired: shapes {a.shape} and {b.shape} must be the same (n, n_vec)")
+    a, na = _unit_max(a, axis=1)
+    b, nb = _unit_max(b, axis=1)
+    return _ratio(np.sum(a.conj() * b, axis=1), na, nb)
+
+
+def distinct_mac(mac_min: float) -> float:
+    """MAC below which two vectors cannot belong to one mode, given the linking threshold ``mac_min``.
+
+    A vector matches a mode when the angle between them, ``arccos(sqrt(MAC))``, is within
+    ``theta = arccos(sqrt(mac_min))``; two vectors of one mode are then within ``2 theta`` of each other,
+    so a pair farther apart than that cannot be one mode: ``cos(2 theta)**2`` (0.81 for ``mac_min`` 0.95),
+    0 when ``2 theta`` reaches a right angle.
+    """
+    theta = np.arccos(np.sqrt(np.clip(mac_min, 0.0, 1.0)))
+    return float(np.cos(min(2.0 * theta, np.pi / 2)) ** 2)
 
 
 def automac(phi: np.ndarray) -> np.ndarray:
@@ -56,7 +125,7 @@ def common_dofs(a: ModalModel, b: ModalModel) -> tuple[np.ndarray, np.ndarray, t
 
     Raises
     ------
-    ValueError
+    EMAError
         No DOF in common.
     """
     def canon(dofs: tuple[DOF, ...]) -> dict[DOF, tuple[int, float]]:
@@ -65,7 +134,7 @@ def common_dofs(a: ModalModel, b: ModalModel) -> tuple[np.ndarray, np.ndarray, t
     ca, cb = canon(a.dofs), canon(b.dofs)
     keys = [k for k in ca if k in cb]
     if not keys:
-        raise ValueError(f"no common DOF between models with {len(a.dofs)} and {len(b.dofs)} DOFs")
+        raise EMAError(f"no common DOF between models with {len(a.dofs)} and {len(b.dofs)} DOFs")
     ia = np.array([ca[k][0] for k in keys])
     sa = np.array([ca[k][1] for k in keys])
     ib = np.array([cb[k][0] for k in keys])
@@ -100,6 +169,10 @@ class ModePairing:
 def pair_modes(a: ModalModel, b: ModalModel, freq_window: float = 0.1, mac_min: float = 0.5) -> ModePairing:
     """Pair the modes of two models: Hungarian assignment on ``1 - MAC`` inside a frequency window.
 
+    The one test-analysis pairing of the package (measured against identified or computed modes): shapes
+    may be complex, DOF labels are matched (a ``-d`` direction flips the sign), and modes left without a
+    partner are reported.
+
     Parameters
     ----------
     a, b : ModalModel
@@ -113,9 +186,14 @@ def pair_modes(a: ModalModel, b: ModalModel, freq_window: float = 0.1, mac_min: 
     -------
     ModePairing
         Inadmissible assignments are reported as unpaired.
+
+    Raises
+    ------
+    EMAError
+        ``freq_window`` not positive, or no DOF in common.
     """
     if not freq_window > 0:
-        raise ValueError(f"freq_window {freq_window}: expected > 0")
+        raise EMAError(f"freq_window {freq_window}: expected > 0")
     pa, pb, _ = common_dofs(a, b)
     M = mac(pa, pb)
     fa, fb = a.frequency_hz, b.frequency_hz

@@ -6,6 +6,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .errors import EMAError
+from .mac import mac_paired
 from .poles import DOF, PoleSet
 
 __all__ = [
@@ -47,14 +49,14 @@ class StabilityCriteria:
 
     def __post_init__(self) -> None:
         if not self.freq_tol > 0:
-            raise ValueError(f"freq_tol {self.freq_tol}: expected > 0")
+            raise EMAError(f"freq_tol {self.freq_tol}: expected > 0")
         if not self.damping_tol > 0:
-            raise ValueError(f"damping_tol {self.damping_tol}: expected > 0")
+            raise EMAError(f"damping_tol {self.damping_tol}: expected > 0")
         if not 0 <= self.mac_min <= 1:
-            raise ValueError(f"mac_min {self.mac_min}: expected in [0, 1]")
+            raise EMAError(f"mac_min {self.mac_min}: expected in [0, 1]")
         lo, hi = self.damping_range
         if not hi > lo:
-            raise ValueError(f"damping_range {self.damping_range}: expected (low, high) with high > low")
+            raise EMAError(f"damping_range {self.damping_range}: expected (low, high) with high > low")
 
 
 @dataclass(frozen=True)
@@ -109,20 +111,63 @@ class StabilizationDiagram:
         return int(np.sum(self.stability >= cls))
 
 
-def _mac_rows(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """MAC between row vectors ``a[k]`` and ``b[k]``, shape (n,)."""
-    num = np.abs(np.sum(a.conj() * b, axis=1)) ** 2
-    den = np.sum(np.abs(a) ** 2, axis=1) * np.sum(np.abs(b) ** 2, axis=1)
-    return np.where(den > 0, num / np.where(den > 0, den, 1.0), 0.0)
+def _match_previous(
+    f: np.ndarray, lam: np.ndarray, vec: np.ndarray, sel: np.ndarray, prev: np.ndarray, freq_tol: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """The pole of the previous order that each pole of ``sel`` is compared with, and their MAC.
+
+    Among the previous poles within ``freq_tol``, the match minimises ``|dlambda|/|lambda| + (1 - MAC)``,
+    the distance the selection clusters with: the nearest pole in frequency alone is often the other
+    member of a close pair, whose vector differs, and that comparison would call a well-estimated mode
+    unstable. Without a previous pole within ``freq_tol``, the nearest in frequency is reported.
+
+    Parameters
+    ----------
+    f : ndarray, shape (n_poles,)
+        Frequencies of all poles; ``f[prev]`` ascending.
+    lam : ndarray of complex, shape (n_poles,)
+    vec : ndarray, shape (n_poles, n_vec)
+    sel, prev : ndarray of int
+        Poles of the current and of the previous order.
+    freq_tol : float
+
+    Returns
+    -------
+    match : ndarray of int, shape (sel.size,)
+        Index (into all poles) of the compared previous pole.
+    mac : ndarray, shape (sel.size,)
+    """
+    fp = f[prev]
+    j = np.searchsorted(fp, f[sel])
+    j0 = np.clip(j - 1, 0, fp.size - 1)
+    j1 = np.clip(j, 0, fp.size - 1)
+    match = prev[np.where(np.abs(fp[j0] - f[sel]) <= np.abs(fp[j1] - f[sel]), j0, j1)]
+    # all (current, previous) pairs within the tolerance; fp is sorted, so each current pole has a run
+    lo = np.searchsorted(fp, f[sel] * (1.0 - freq_tol), side="left")
+    hi = np.searchsorted(fp, f[sel] * (1.0 + freq_tol), side="right")
+    counts = np.maximum(hi - lo, 0)
+    if counts.sum():
+        ii = np.repeat(np.arange(sel.size), counts)
+        jj = prev[np.repeat(lo, counts) + np.arange(counts.sum()) - np.repeat(np.cumsum(counts) - counts, counts)]
+        mac = mac_paired(vec[sel[ii]], vec[jj])
+        dist = np.abs(lam[sel[ii]] - lam[jj]) / np.abs(lam[sel[ii]]) + (1.0 - mac)
+        # the smallest distance per current pole: sort by (pole, distance), keep the first of each run
+        first = np.lexsort((dist, ii))
+        keep = first[np.r_[True, ii[first][1:] != ii[first][:-1]]]
+        match[ii[keep]] = jj[keep]
+    return match, mac_paired(vec[sel], vec[match])
 
 
 def stabilize(poles: PoleSet, criteria: StabilityCriteria | None = None) -> StabilizationDiagram:
     """Classify the poles of each order against the poles of the previous computed order.
 
-    Poles outside the physical damping range are dropped. For each remaining pole the nearest pole in
-    frequency of the previous order is its match; the pole is stable in frequency when their relative
-    frequency difference is within ``freq_tol``, additionally in damping when the relative damping
-    difference is within ``damping_tol``, and additionally in vector when their MAC is at least ``mac_min``.
+    Poles outside the physical damping range are dropped. Each remaining pole is compared with one pole
+    of the previous order: among those within ``freq_tol`` in frequency, the one nearest in
+    ``|dlambda|/|lambda| + (1 - MAC)`` (frequency and vector, so that the two members of a close pair are
+    each compared with themselves), else the nearest in frequency. The pole is stable in frequency when
+    their relative frequency difference is within ``freq_tol``, additionally in damping when the relative
+    damping difference is within ``damping_tol``, and additionally in vector when their MAC is at least
+    ``mac_min``.
 
     Parameters
     ----------
@@ -147,15 +192,9 @@ def stabilize(poles: PoleSet, criteria: StabilityCriteria | None = None) -> Stab
     for p in poles.orders:
         sel = np.flatnonzero(order == p)
         if prev is not None and prev.size and sel.size:
-            fp = f[prev]
-            j = np.searchsorted(fp, f[sel])
-            j0 = np.clip(j - 1, 0, fp.size - 1)
-            j1 = np.clip(j, 0, fp.size - 1)
-            pick = np.where(np.abs(fp[j0] - f[sel]) <= np.abs(fp[j1] - f[sel]), j0, j1)
-            m = prev[pick]
+            m, mac = _match_previous(f, pole, vec, sel, prev, crit.freq_tol)
             df = np.abs(f[sel] - f[m]) / f[sel]
             dz = np.abs(z[sel] - z[m]) / np.maximum(z[sel], 1e-12)
-            mac = _mac_rows(vec[sel], vec[m])
             mac_prev[sel] = mac
             ok_f = df <= crit.freq_tol
             ok_d = ok_f & (dz <= crit.damping_tol)

@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import json
 import os
-import time
 
 import numpy as np
 import pytest
@@ -403,10 +402,12 @@ def test_frf_without_signal_is_refused(tmp_path, capsys, what, value):
 # ------------------------------------------------------------------------------------------ model order
 def test_absurd_order_through_the_cli(tmp_path, capsys):
     path = _write(tmp_path / "order.uff", _case(n_o=3))
+    # Refused before anything large is built (a MemoryError or a hang otherwise); the default is complex LSRF.
     top = lscf_max_order(FREQ.size, 3, 1)
-    t0 = time.perf_counter()
+    _cli_error(capsys, [*_fit_cli(path), "--method", "lscf", "--order", "100000"], path, "model order 100000",
+               f"maximum {top}")
+    top = lsrf_max_order(FREQ.size, 3, real=False)
     _cli_error(capsys, [*_fit_cli(path), "--order", "100000"], path, "model order 100000", f"maximum {top}")
-    assert time.perf_counter() - t0 < 10.0  # refused before anything large is built
 
 
 def test_order_bound_is_the_least_squares_size():
@@ -429,10 +430,8 @@ def test_order_bound_is_the_least_squares_size():
         lsrf(frf, max_order=7, coefficients="complex")
     # huge requests fail at once, without listing the orders
     for run in (lambda: lscf(frf, max_order=10**15), lambda: lsrf(frf, orders=range(1, 10**15))):
-        t0 = time.perf_counter()
         with pytest.raises(EMAError, match="maximum 12"):
             run()
-        assert time.perf_counter() - t0 < 5.0  # no listing of 10**15 orders
     with pytest.raises(EMAError, match="expected an integer"):
         lscf(frf, max_order=4.5)
 

@@ -1,0 +1,76 @@
+"""The one MAC implementation of ema: matrix and row-paired forms, scale safety, the distinct-vector bound."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from ema import EMAError
+from ema.mac import distinct_mac, mac, mac_paired
+
+
+def _direct(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Textbook MAC of the columns, |a^H b|^2 / ((a^H a)(b^H b)), at unit scale."""
+    out = np.empty((a.shape[1], b.shape[1]))
+    for i in range(a.shape[1]):
+        for j in range(b.shape[1]):
+            out[i, j] = abs(np.vdot(a[:, i], b[:, j])) ** 2 / (np.vdot(a[:, i], a[:, i]).real
+                                                              * np.vdot(b[:, j], b[:, j]).real)
+    return out
+
+
+def _shapes(seed: int, n_dof: int, n: int) -> np.ndarray:
+    rng = np.random.default_rng(seed)
+    return rng.standard_normal((n_dof, n)) + 1j * rng.standard_normal((n_dof, n))
+
+
+def test_mac_matches_direct_formula_at_unit_scale():
+    a, b = _shapes(1, 7, 4), _shapes(2, 7, 5)
+    M = mac(a, b)
+    assert M.shape == (4, 5)
+    np.testing.assert_allclose(M, _direct(a, b), rtol=1e-12, atol=1e-15)
+    np.testing.assert_allclose(np.diag(mac(a, a)), 1.0, rtol=1e-12)
+
+
+@pytest.mark.parametrize("scale", [1e-156, 1e-300, 1e144, 1e300])
+def test_mac_is_scale_safe(scale):
+    # the products of shapes of these magnitudes under- or overflow float64 when formed directly
+    a, b = _shapes(3, 6, 3), _shapes(4, 6, 2)
+    expected = _direct(a, b)
+    np.testing.assert_allclose(mac(scale * a, b), expected, rtol=1e-12, atol=1e-15)
+    np.testing.assert_allclose(mac(scale * a, scale * b), expected, rtol=1e-12, atol=1e-15)
+    # one column tiny, the other huge, in the same set
+    mixed = a * np.array([scale, 1.0 / scale, 1.0])
+    np.testing.assert_allclose(mac(mixed, b), expected, rtol=1e-12, atol=1e-15)
+    np.testing.assert_allclose(mac_paired(scale * a.T[:2], b.T), np.diag(expected[:2, :2]), rtol=1e-12)
+
+
+def test_mac_paired_is_the_diagonal():
+    a, b = _shapes(5, 9, 6), _shapes(6, 9, 6)
+    p = mac_paired(a.T, b.T)
+    assert p.shape == (6,)
+    np.testing.assert_allclose(p, np.diag(_direct(a, b)), rtol=1e-12, atol=1e-15)
+    # scale and phase of either vector do not matter
+    np.testing.assert_allclose(mac_paired(3j * a.T, -0.5 * b.T), p, rtol=1e-12)
+
+
+def test_zero_vectors_and_bad_shapes():
+    a = _shapes(7, 5, 2)
+    a[:, 1] = 0.0
+    M = mac(a, a)
+    assert M[1, 1] == 0.0 and M[0, 1] == 0.0 and np.isclose(M[0, 0], 1.0)
+    assert mac_paired(a.T, a.T).tolist() == [pytest.approx(1.0), 0.0]
+    assert mac(a[:, 0], 2j * a[:, 0]).shape == (1, 1)
+    with pytest.raises(EMAError, match="mac"):
+        mac(np.ones((3, 2)), np.ones((4, 2)))
+    with pytest.raises(EMAError, match="mac_paired"):
+        mac_paired(np.ones((3, 2)), np.ones((2, 3)))
+
+
+def test_distinct_mac_bound():
+    # two vectors each within the linking angle of a mode's vector are within twice that angle
+    assert distinct_mac(0.95) == pytest.approx(np.cos(2 * np.arccos(np.sqrt(0.95))) ** 2)
+    assert 0.80 < distinct_mac(0.95) < 0.82
+    assert distinct_mac(1.0) == pytest.approx(1.0)
+    assert distinct_mac(0.5) == pytest.approx(0.0, abs=1e-15)
+    assert distinct_mac(0.0) == pytest.approx(0.0, abs=1e-15)
