@@ -67,6 +67,7 @@ def test_every_json_output_is_one_document(uff_dir, tmp_path, capsys, monkeypatc
         ("ema", "joints"): ["ema", "joints", str(uff_dir), "--out", str(tmp_path / "j"), *ema_opts],
         ("ema", "disk"): ["ema", "disk", str(uff_dir / "one"), "--out", str(tmp_path / "d"), *ema_opts],
         ("ema", "assembly"): ["ema", "assembly", str(uff_dir / "one"), "--out", str(tmp_path / "a"), *ema_opts],
+        ("lab", "simulate"): ["lab", "simulate", *MODEL, "--blades", "2", "--out", str(tmp_path / "lab"), "--json"],
     }
     assert set(runs) == _json_commands(), "a command with --json is not covered by this test"
     for key, argv in runs.items():

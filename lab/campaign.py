@@ -1,0 +1,315 @@
+"""A virtual measurement campaign on disk (issue 9, items 5–6): UFF files, film scans, manifest and truth.
+
+Layout of ``<out>/`` (``NN`` 1-based, two digits; the manifest format is documented in docs/campaign.md):
+
+```
+campaign.toml                 manifest: tests, films, known joints, grid, model
+blades/blade_NN.uff           free blade NN (3 leading-edge points)
+disk/disk.uff                 free disk (1 axial point per sector)
+d1b/joint_NN.uff              disk + blade NN in slot NN
+assembly/assembly.uff         the full bladed disk
+films/joint_NN_L.png, _R.png  film scans of the known joints
+truth/truth.json              what the identification never sees (seed, deltas, exact frequencies, damping)
+truth/patterns.npz            true contact grids L, R: bool, shape (n_blades, rows, cols)
+truth/films/                  every flank's film scan
+```
+
+The campaign is written into a temporary folder beside ``out`` and renamed into place at the end, so a
+failed or interrupted run never leaves a half-written campaign.
+"""
+
+from __future__ import annotations
+
+import json
+import shutil
+import tempfile
+from collections.abc import Callable
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+
+import numpy as np
+import tomli_w
+
+from ema.uff import write_frfs
+from rom.academic import AcademicParams, build_bladed_disk
+from rom.solver import nodal_diameters
+
+from .films import ORIENTATION, FilmParams, render_film, write_film
+from .patterns import PressureParams, flank_coordinates, simulate_pressure
+from .rig import MIN_SNR, RigSetup, measure, peak_snr
+from .truth import (
+    TruthParams,
+    assemble_truth,
+    damping_ratios,
+    make_truth_twin,
+    solve_truth,
+)
+
+__all__ = ["CampaignSpec", "CampaignInfo", "default_known_joints", "simulate_campaign"]
+
+#: Modes each test must cover (issue 9 item 4): free blade, free disk, disk–one-blade; the full assembly
+#: covers the first three blade-mode families (3 × n_blades modes) and the disk modes among them.
+BLADE_MODES, DISK_MODES, D1B_MODES, FULL_FAMILIES = 8, 7, 10, 3
+#: Hammer references of the full-assembly test (blade tips spread round the disk).
+FULL_INPUTS = 3
+#: Spectral lines per test: the bundled campaign must stay small (≤ 40 MB; 16 bytes a value in UFF 58b).
+MAX_LINES = {"blade": 4000, "disk": 4000, "d1b": 3000, "assembly": 3500}
+
+
+def default_known_joints(n_blades: int) -> tuple[int, ...]:
+    """Filmed joints when none are given: up to 5 (paper §6.1), spread evenly, never all of them."""
+    n_known = min(5, max(2, n_blades // 3), n_blades - 1)
+    pos = np.linspace(1, n_blades, n_known + 2)[1:-1]
+    return tuple(int(k) for k in np.unique(np.round(pos).astype(int)))
+
+
+@dataclass(frozen=True)
+class CampaignSpec:
+    """What to simulate. ``n_blades`` and ``grid`` default to the academic twin's (paper specimen)."""
+
+    seed: int = 0
+    n_blades: int = AcademicParams.n_blades
+    grid: tuple[int, int] = AcademicParams.__dataclass_fields__["grid"].default
+    level: str = "default"
+    known_joints: tuple[int, ...] | None = None
+    name: str = "academic"
+    truth: TruthParams = field(default_factory=TruthParams)
+    pressure: PressureParams = field(default_factory=PressureParams)
+    film: FilmParams = field(default_factory=FilmParams)
+    max_lines: dict = field(default_factory=lambda: dict(MAX_LINES))
+
+    def model_params(self) -> AcademicParams:
+        """The academic-twin parameters (raises ``ValueError`` naming a bad blade count, grid or level)."""
+        return AcademicParams(n_blades=self.n_blades, grid=tuple(self.grid), level=self.level)
+
+    def known(self) -> tuple[int, ...]:
+        known = default_known_joints(self.n_blades) if self.known_joints is None else tuple(self.known_joints)
+        bad = [k for k in known if isinstance(k, bool) or not isinstance(k, (int, np.integer))
+               or not 1 <= k <= self.n_blades]
+        if bad or not known or len(set(known)) != len(known):
+            raise ValueError(f"known joints {list(known)}: expected distinct joint numbers in 1..{self.n_blades}")
+        return tuple(sorted(int(k) for k in known))
+
+
+@dataclass(frozen=True)
+class CampaignInfo:
+    """What :func:`simulate_campaign` wrote."""
+
+    campaign: Path
+    n_files: int
+    truth: Path
+
+    def to_dict(self) -> dict:
+        return {"campaign": str(self.campaign), "n_files": self.n_files, "truth": str(self.truth)}
+
+
+def _setup(f_first: float, f_last: float, max_lines: int, f_modes: np.ndarray | None = None) -> RigSetup:
+    """Band from half the first to 1.05 × the last mode of interest, on at most ``max_lines`` lines.
+
+    The spacing is a multiple of 0.05 Hz: the coarsest that fits the band into ``max_lines``, refined (within
+    that budget, as a lab zooms to split close modes) to a quarter of the closest spacing of ``f_modes``.
+    """
+    lo, hi = 0.5 * f_first, 1.05 * f_last
+    step = 0.05
+    coarsest = step * np.ceil((hi - lo) / (max_lines - 1) / step)
+    df = max(coarsest, 0.25)
+    if f_modes is not None and len(f_modes) > 1:
+        f_modes = np.sort(f_modes)
+        gaps = np.diff(f_modes)
+        # Degenerate pairs (a tuned disk's nodal diameters) are one peak at any resolution: skip them.
+        gaps = gaps[gaps > 1e-5 * f_modes[1:]]
+        if gaps.size:
+            df = max(coarsest, min(df, step * np.floor(gaps.min() / 4 / step)))
+    return RigSetup((lo, hi), float(max(df, step)))
+
+
+def _nn(k: int) -> str:
+    return f"{k:02d}"
+
+
+def simulate_campaign(
+    spec: CampaignSpec, out: str | Path, progress: Callable[[str], None] | None = None
+) -> CampaignInfo:
+    """Simulate a whole campaign on the truth twin and write it to ``out`` (replacing nothing half-way).
+
+    Parameters
+    ----------
+    spec : CampaignSpec
+    out : path
+        Campaign folder; must not exist yet, or be an empty folder.
+    progress : callable, optional
+        Called with a short message before each step.
+    """
+    say = progress or (lambda msg: None)
+    out = Path(out)
+    if out.exists() and (not out.is_dir() or any(out.iterdir())):
+        raise ValueError(f"{out}: exists and is not an empty folder; choose a new --out")
+    params = spec.model_params()
+    known = spec.known()
+    out.parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
+    try:
+        n_files = _write(spec, params, known, tmp, say)
+        if out.exists():
+            out.rmdir()
+        tmp.rename(out)
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+    return CampaignInfo(out, n_files, out / "truth" / "truth.json")
+
+
+def _write(spec: CampaignSpec, params: AcademicParams, known: tuple[int, ...], root: Path, say) -> int:
+    rng = np.random.default_rng(spec.seed)
+    # Independent streams per purpose, so that changing one part (say, the film grain) leaves the others.
+    rng_pressure, rng_truth, rng_damping, rng_noise, rng_film = rng.spawn(5)
+    say(f"academic twin, level {params.level}, {params.n_blades} blades, grid {params.grid[0]}x{params.grid[1]}")
+    bd = build_bladed_disk(params)
+    u, v = flank_coordinates(bd)
+    pressure = simulate_pressure(u, v, params.n_blades, rng_pressure, spec.pressure)
+    patterns = pressure.patterns()
+    twin = make_truth_twin(bd, patterns, rng_truth, spec.truth)
+    manifest: dict = {
+        "campaign": {"name": spec.name, "kind": "virtual", "n_blades": params.n_blades, "grid": list(params.grid),
+                     "known_joints": list(known)},
+        "model": {"family": "academic", "level": params.level, "n_blades": params.n_blades,
+                  "grid": list(params.grid)},
+        "tests": [],
+        "films": [],
+    }
+    truth: dict = {"seed": spec.seed, "n_blades": params.n_blades, "grid": list(params.grid),
+                   "known_joints": list(known),
+                   "truth_params": _jsonable(spec.truth), "blade_variations": [v.to_dict() for v in twin.variations],
+                   "contact_fraction_pct": {"L": (100 * pressure.fractions[:, 0]).tolist(),
+                                            "R": (100 * pressure.fractions[:, 1]).tolist()}}
+    n_files = 0
+
+    def run_test(kind: str, rel: str, slots, with_disk: bool, n_wanted: int, inputs_of, families: int = 0) -> dict:
+        max_lines = spec.max_lines[kind]
+        """One test; ``families`` > 0: the band covers that many blade-mode families (n_blades modes each)."""
+        nonlocal n_files
+        asm = assemble_truth(twin, slots, with_disk=with_disk)
+        # Compute past the modes of interest: invisible (in-plane) modes interleave with them, and the modes
+        # above the band leave their residual effect at its upper edge.
+        modes = solve_truth(asm, n_wanted + n_wanted // 2 + 6)
+        if not with_disk:
+            # A free blade's points carry the same labels on every blade (nodes 1..3): one test rig, many blades.
+            modes = replace(modes, meas_labels=[("blade", 0, p, d) for _, _, p, d in modes.meas_labels])
+        outputs = list(range(len(asm.meas_labels)))
+        inputs = inputs_of(asm.meas_labels)
+        f = modes.frequencies_hz
+        zeta = damping_ratios(f.size, rng_damping, spec.truth.damping_range)
+        # Band from the modes a test can see: first a generous one, then the first n_wanted visible modes.
+        snr = peak_snr(modes, zeta, _setup(f[0], f[-1], max_lines), outputs, inputs)
+        seen = np.flatnonzero(snr >= MIN_SNR)
+        if families:
+            blade_modes = np.flatnonzero(modes.blade_energy > 0.5)
+            last = blade_modes[min(families * params.n_blades, blade_modes.size) - 1]
+            seen = seen[f[seen] <= f[last]]
+        else:
+            seen = seen[:n_wanted]
+        setup = _setup(f[seen[0]], f[seen[-1]], max_lines, f[seen])
+        frf = measure(modes, zeta, setup, rng_noise, inputs, outputs)
+        write_frfs(root / rel, frf, id1=f"bladetwin lab {kind}")
+        n_files += 1
+        lo, hi = setup.band_hz
+        snr = peak_snr(modes, zeta, setup, outputs, inputs)
+        in_band = (f >= lo) & (f <= hi)
+        visible = np.flatnonzero(in_band & (snr >= MIN_SNR))
+        result = {"frequencies_hz": f[visible].tolist(), "damping_ratios": zeta[visible].tolist(),
+                  "all_frequencies_hz": f[in_band].tolist(), "band_hz": [lo, hi]}
+        if kind == "disk":
+            disk_rows = [k for k, lab in enumerate(asm.meas_labels) if lab[0] == "disk"]
+            result["nodal_diameters"] = nodal_diameters(modes.meas_shapes[disk_rows][:, visible]).tolist()
+        return result
+
+    def blade_tip(labels) -> list[int]:
+        return [k for k, lab in enumerate(labels) if lab[0] == "blade" and lab[2] == 3][:1]
+
+    def disk_first(labels) -> list[int]:
+        return [k for k, lab in enumerate(labels) if lab[0] == "disk"][:1]
+
+    keys = ("frequencies_hz", "damping_ratios", "all_frequencies_hz", "band_hz")
+    for key in keys:
+        truth[key] = {"blades": [], "disk": None, "d1b": [], "assembly": None}
+
+    def record(group: str, result: dict) -> None:
+        for key in keys:
+            if isinstance(truth[key][group], list):
+                truth[key][group].append(result[key])
+            else:
+                truth[key][group] = result[key]
+
+    for s in range(1, params.n_blades + 1):
+        say(f"free blade {s}/{params.n_blades}")
+        rel = f"blades/blade_{_nn(s)}.uff"
+        record("blades", run_test("blade", rel, [s], False, BLADE_MODES, blade_tip))
+        manifest["tests"].append({"type": "blade", "file": rel, "blade": s})
+    say("free disk")
+    disk = run_test("disk", "disk/disk.uff", (), True, DISK_MODES, disk_first)
+    record("disk", disk)
+    truth["disk_nodal_diameters"] = disk["nodal_diameters"]
+    manifest["tests"].append({"type": "disk", "file": "disk/disk.uff"})
+    for s in range(1, params.n_blades + 1):
+        say(f"disk-one-blade {s}/{params.n_blades}")
+        rel = f"d1b/joint_{_nn(s)}.uff"
+        record("d1b", run_test("d1b", rel, [s], True, D1B_MODES, blade_tip))
+        manifest["tests"].append({"type": "d1b", "file": rel, "joint": s})
+    say("full bladed disk")
+
+    def spread_tips(labels) -> list[int]:
+        # Hammer on the tips of FULL_INPUTS blades spread round the disk: mistuned modes localise on a few
+        # blades, and one reference would miss the rest.
+        tips = [k for k, lab in enumerate(labels) if lab[0] == "blade" and lab[2] == 3]
+        pick = np.unique(np.round(np.linspace(0, len(tips), FULL_INPUTS, endpoint=False)).astype(int))
+        return [tips[i] for i in pick]
+
+    record("assembly", run_test("assembly", "assembly/assembly.uff", None, True,
+                                FULL_FAMILIES * params.n_blades + DISK_MODES, spread_tips, families=FULL_FAMILIES))
+    manifest["tests"].append({"type": "assembly", "file": "assembly/assembly.uff"})
+    truth["blade_deltas_pct"] = _blade_deltas_pct(truth["frequencies_hz"]["blades"])
+
+    say("film scans")
+    L = np.stack([p.L for p in patterns])
+    R = np.stack([p.R for p in patterns])
+    for s in range(1, params.n_blades + 1):
+        for flank in ("L", "R"):
+            image, meta = render_film(pressure, s, flank, rng_film, spec.film)
+            name = f"joint_{_nn(s)}_{flank}.png"
+            write_film(root / "truth" / "films" / name, image)
+            entry = {"joint": s, "flank": flank, "file": f"films/{name}", **_jsonable(meta.to_dict())}
+            if s in known:
+                write_film(root / "films" / name, image)
+                n_files += 1
+                manifest["films"].append(entry)
+            truth.setdefault("films", []).append({**entry, "file": f"truth/films/{name}"})
+    manifest["campaign"]["orientation"] = ORIENTATION
+    with open(root / "truth" / "patterns.npz", "wb") as fh:
+        np.savez_compressed(fh, L=L, R=R)
+    (root / "truth" / "truth.json").write_text(json.dumps(truth, indent=1), encoding="utf-8")
+    (root / "campaign.toml").write_text(tomli_w.dumps(manifest), encoding="utf-8")
+    return n_files
+
+
+def _blade_deltas_pct(freqs: list[list[float]]) -> list[list[float]]:
+    """Paper Eq. 37 on the exact frequencies: (ω²_b − mean_b ω²) / mean_b ω² · 100, blade × mode."""
+    n = min(len(f) for f in freqs)
+    lam = np.array([f[:n] for f in freqs]) ** 2
+    return (100 * (lam - lam.mean(axis=0)) / lam.mean(axis=0)).tolist()
+
+
+def _jsonable(obj) -> dict:
+    """A dataclass or dict with numpy scalars and tuples made plain JSON/TOML values."""
+    from dataclasses import asdict, is_dataclass
+
+    d = asdict(obj) if is_dataclass(obj) else dict(obj)
+
+    def plain(x):
+        if isinstance(x, dict):
+            return {k: plain(v) for k, v in x.items() if v is not None}
+        if isinstance(x, (list, tuple)):
+            return [plain(v) for v in x]
+        if isinstance(x, np.generic):
+            return x.item()
+        return x
+
+    return plain(d)

@@ -1,0 +1,564 @@
+"""True contact patterns: a smooth contact-pressure field on every flank of every joint.
+
+The rig's *truth* for contact is a pressure field per joint (slot) and flank, defined as a continuous
+function of the flank's physical coordinates, so that it can be evaluated at the grid nodes (the contact
+pattern the truth twin uses) and at film-pixel resolution (:mod:`lab.films`). A node is in contact where
+the pressure exceeds that flank's threshold.
+
+Coordinates
+-----------
+``u`` is the axial position (m, the blade's local z; grid rows), ``v`` the radial position along the
+slot wall (m, the blade's local y; grid columns, increasing outwards from the slot bottom). Inside the
+model the field works in normalised flank coordinates
+
+    ξ = (u − u_c) / (u_max − u_min),   η = (v − v_c) / (v_max − v_min),
+
+where the box is the one spanned by the grid nodes and (u_c, v_c) its centre, so ξ, η ∈ [−½, ½] on the
+flank and the shape parameters (length scales, island radii, seating offset) are fractions of the flank.
+
+Pressure model
+--------------
+For joint ``s`` and flank ``f`` (``"L"`` or ``"R"``)
+
+    z_sf(ξ, η) = C_f(ξ, η − d_s) + a_v G_sf(ξ, η) + g_sf · (ξ, η) − Σ_k h_k exp(−|(ξ, η) − c_k|² / (2 r_k²))
+    p_sf = p_ref · log(1 + exp(z_sf))                                                               [Pa]
+
+* ``C_f``, the **common shape** of flank side ``f``, is drawn once for all joints (manufacturing is
+  uniform): a Gaussian bearing core plus a smooth random field. Imprints of one flank side therefore share
+  their dominant features.
+* ``G_sf`` is a smooth random field of the joint (local variation), with amplitude ``a_v``.
+* ``d_s`` is the joint's seating depth (radial offset of the imprint, shared by both flanks of a blade).
+* ``g_sf`` is the misalignment tilt: a pressure gradient drawn per joint; its axial component changes sign
+  from L to R (a root yawed in its slot bears on opposite axial ends of its two flanks).
+* The Gaussian dips are local low-pressure islands (a Poisson number per flank).
+* The softplus keeps the pressure positive and smooth.
+
+The smooth random fields are random-Fourier-feature samples of a unit-variance Gaussian process with a
+squared-exponential covariance (Rahimi & Recht, 2007), which is what makes them continuous functions that
+can be evaluated anywhere. Each flank's threshold is set from a target contact fraction drawn uniformly in
+``PressureParams.fraction_range``; the contact count then moves by at most ``fraction_window`` of the nodes
+so that the threshold, the (geometric) midpoint of the pressure gap between two consecutive nodes, has as few
+nodes as possible within about ``threshold_margin`` (relative) of it. Nearly every node's pressure then
+lies clearly above or below its threshold, so that a film reading can recover the grid (:mod:`lab.films`).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.special import ndtr
+
+from rom.academic import BladedDisk
+from rom.contact import ContactPattern
+
+__all__ = ["PressureParams", "TruePressure", "flank_coordinates", "simulate_pressure"]
+
+FLANKS = ("L", "R")
+_CHUNK = 1 << 15
+
+
+def flank_coordinates(bd: BladedDisk) -> tuple[np.ndarray, np.ndarray]:
+    """Physical in-plane coordinates of the contact-grid nodes of a blade root flank.
+
+    Parameters
+    ----------
+    bd : rom.academic.BladedDisk
+        The bladed disk; the blade's node sets ``"L"`` and ``"R"`` have the grid shape (rows, cols).
+
+    Returns
+    -------
+    u : ndarray of float64, shape (rows, cols)
+        Axial position of each node (m, the blade's local z); it varies along the rows.
+    v : ndarray of float64, shape (rows, cols)
+        Radial position along the slot wall (m, the blade's local y); it increases with the column.
+
+    Raises
+    ------
+    ValueError
+        If the L and R flanks do not share the same (u, v) layout.
+    """
+    X = {f: bd.blade.coords[bd.blade.node_set(f)] for f in FLANKS}  # (rows, cols, 3): x thickness, y radial, z axial
+    if not np.allclose(X["L"][..., 1:], X["R"][..., 1:], rtol=0.0, atol=1e-12):
+        raise ValueError("flanks L and R of the blade do not share the same (radial, axial) node layout")
+    return X["L"][..., 2].astype(np.float64), X["L"][..., 1].astype(np.float64)
+
+
+@dataclass(frozen=True)
+class PressureParams:
+    """Parameters of the true-pressure generator. Lengths are fractions of the flank's extent per axis.
+
+    Attributes
+    ----------
+    fraction_range : (float, float)
+        Range of the contact area fraction (share of grid nodes in contact) per joint and flank; each flank's
+        target is drawn uniformly in it. Default (0.30, 0.85).
+    p_ref : float
+        Pressure scale (Pa): p = p_ref · softplus(z). Default 30 MPa.
+    core_amplitude : float
+        Height (z units) of the Gaussian bearing core of the common shape. Default 2.0.
+    core_width : float
+        Mean standard deviation of the core (flank extents); each axis draws ×U(0.75, 1.25). Default 0.45.
+    core_offset : float
+        The core's centre is drawn uniformly in [−core_offset, core_offset]² (flank extents). Default 0.15.
+    shape_amplitude : float
+        Standard deviation (z units) of the common smooth random field. Default 1.0.
+    length_scale : float
+        Correlation length of the common random field (flank extents). Default 0.35.
+    variation : float
+        Standard deviation (z units) of each joint's own smooth random field. Default 0.35.
+    variation_length_scale : float
+        Correlation length of the per-joint field (flank extents). Default 0.25.
+    tilt_spread : float
+        Standard deviation of each component of the misalignment gradient (z units per flank extent).
+        Default 0.5.
+    seating_spread : float
+        Standard deviation of the seating depth, the radial offset of a joint's imprint (flank heights).
+        Default 0.05.
+    islands : float
+        Mean number (Poisson) of low-pressure islands per flank. Default 0.8.
+    island_radius : (float, float)
+        Range of the islands' Gaussian radius (flank extents). Default (0.06, 0.14).
+    island_depth : (float, float)
+        Range of the islands' depth (z units). Default (1.0, 2.5).
+    n_features : int
+        Random Fourier features per smooth field. Default 64.
+    fraction_window : float
+        How far (fraction of the nodes, at least one node) the contact count may move from its target to
+        put the threshold into a clear pressure gap between nodes. Default 0.05.
+    threshold_margin : float
+        Relative pressure uncertainty of a reading (a film's noise, say), used to keep nodes away from the
+        threshold; 0 picks the widest gap instead. Default 0.01.
+    """
+
+    fraction_range: tuple[float, float] = (0.30, 0.85)
+    p_ref: float = 30e6
+    core_amplitude: float = 2.0
+    core_width: float = 0.45
+    core_offset: float = 0.15
+    shape_amplitude: float = 1.0
+    length_scale: float = 0.35
+    variation: float = 0.35
+    variation_length_scale: float = 0.25
+    tilt_spread: float = 0.5
+    seating_spread: float = 0.05
+    islands: float = 0.8
+    island_radius: tuple[float, float] = (0.06, 0.14)
+    island_depth: tuple[float, float] = (1.0, 2.5)
+    n_features: int = 64
+    fraction_window: float = 0.05
+    threshold_margin: float = 0.01
+
+    def __post_init__(self) -> None:
+        lo, hi = self.fraction_range
+        if not 0.0 < lo <= hi < 1.0:
+            raise ValueError(f"fraction_range must satisfy 0 < low ≤ high < 1, got {self.fraction_range}")
+        for name in ("p_ref", "core_width", "length_scale", "variation_length_scale"):
+            v = getattr(self, name)
+            if not (math.isfinite(v) and v > 0):
+                raise ValueError(f"{name} must be positive and finite, got {v!r}")
+        if not 0.0 <= self.fraction_window < 1.0:
+            raise ValueError(f"fraction_window must lie in [0, 1), got {self.fraction_window!r}")
+        if not (math.isfinite(self.threshold_margin) and self.threshold_margin >= 0):
+            raise ValueError(f"threshold_margin must be ≥ 0 and finite, got {self.threshold_margin!r}")
+        for name in ("core_amplitude", "core_offset", "shape_amplitude", "variation", "tilt_spread",
+                     "seating_spread", "islands"):
+            v = getattr(self, name)
+            if not (math.isfinite(v) and v >= 0):
+                raise ValueError(f"{name} must be ≥ 0 and finite, got {v!r}")
+        for name in ("island_radius", "island_depth"):
+            a, b = getattr(self, name)
+            if not 0.0 < a <= b < math.inf:
+                raise ValueError(f"{name} must be a range 0 < low ≤ high, got {getattr(self, name)}")
+        if not (isinstance(self.n_features, int) and self.n_features >= 1):
+            raise ValueError(f"n_features must be an integer ≥ 1, got {self.n_features!r}")
+
+
+@dataclass(frozen=True)
+class Lattice:
+    """Points x(r, c) = origin + r · row_step + c · col_step in (ξ, η), for r < shape[0], c < shape[1].
+
+    A film's pixels form such a lattice in flank coordinates (an affine map: scale, shift, small rotation),
+    which lets :class:`SmoothField` evaluate separably instead of point by point.
+    """
+
+    origin: np.ndarray
+    row_step: np.ndarray
+    col_step: np.ndarray
+    shape: tuple[int, int]
+
+    def points(self) -> tuple[np.ndarray, np.ndarray]:
+        """(ξ, η), each of shape ``shape``."""
+        r, c = np.arange(self.shape[0])[:, None], np.arange(self.shape[1])[None, :]
+        return tuple(self.origin[k] + r * self.row_step[k] + c * self.col_step[k] for k in (0, 1))
+
+    def shifted(self, d: np.ndarray) -> Lattice:
+        return Lattice(self.origin + d, self.row_step, self.col_step, self.shape)
+
+
+@dataclass(frozen=True, eq=False)
+class SmoothField:
+    """A smooth random field f(ξ, η) = √(2/m) Σ_k w_k cos(ω_k · (ξ, η) + φ_k), with unit variance.
+
+    It is a random-Fourier-feature sample of a Gaussian process with covariance exp(−|Δ|² / (2 ℓ²)):
+    ω_k ~ N(0, ℓ⁻² I), φ_k ~ U(0, 2π), w_k ~ N(0, 1).
+
+    Attributes
+    ----------
+    omega : ndarray, shape (m, 2)
+        Angular wave vectors (rad per flank extent).
+    phase : ndarray, shape (m,)
+    weight : ndarray, shape (m,)
+    """
+
+    omega: np.ndarray
+    phase: np.ndarray
+    weight: np.ndarray
+
+    @classmethod
+    def draw(cls, rng: np.random.Generator, n_features: int, length_scale: float) -> SmoothField:
+        return cls(rng.normal(0.0, 1.0 / length_scale, (n_features, 2)), rng.uniform(0.0, 2 * np.pi, n_features),
+                   rng.normal(0.0, 1.0, n_features))
+
+    def __call__(self, xi: np.ndarray, eta: np.ndarray) -> np.ndarray:
+        xi, eta = np.broadcast_arrays(np.asarray(xi, np.float64), np.asarray(eta, np.float64))
+        out = np.empty(xi.shape)
+        x, y, res = xi.reshape(-1), eta.reshape(-1), out.reshape(-1)
+        for a in range(0, x.size, _CHUNK):  # chunks bound the (points × features) temporary
+            arg = np.multiply.outer(x[a:a + _CHUNK], self.omega[:, 0])
+            arg += np.multiply.outer(y[a:a + _CHUNK], self.omega[:, 1])
+            arg += self.phase
+            np.cos(arg, out=arg)
+            res[a:a + _CHUNK] = arg @ self.weight
+        return math.sqrt(2.0 / self.weight.size) * out
+
+    def on_lattice(self, lat: Lattice) -> np.ndarray:
+        """The field on a lattice, shape ``lat.shape``: the same values as ``self(*lat.points())``.
+
+        Separable, because cos(a + b) = cos a cos b − sin a sin b: two (rows × m) by (m × cols) products
+        instead of a cosine per point and feature.
+        """
+        r, c = np.arange(lat.shape[0]), np.arange(lat.shape[1])
+        a = np.outer(r, self.omega @ lat.row_step) + (self.omega @ lat.origin + self.phase)  # (rows, m)
+        b = np.outer(self.omega @ lat.col_step, c)  # (m, cols), C-contiguous: the fast BLAS layout
+        out = (np.cos(a) * self.weight) @ np.cos(b) - (np.sin(a) * self.weight) @ np.sin(b)
+        return math.sqrt(2.0 / self.weight.size) * out
+
+
+def _smooth(f: SmoothField, xi: np.ndarray, eta: np.ndarray, lat: Lattice | None) -> np.ndarray:
+    """``f`` at (ξ, η); separably when the points are the lattice ``lat``."""
+    return f(xi, eta) if lat is None else f.on_lattice(lat)
+
+
+@dataclass(frozen=True, eq=False)
+class CommonShape:
+    """The shape shared by one flank side of every joint: a Gaussian bearing core plus a smooth field.
+
+    Attributes
+    ----------
+    centre : ndarray, shape (2,)
+        Core centre (ξ, η).
+    width : ndarray, shape (2,)
+        Core standard deviations along ξ and η (flank extents).
+    amplitude : float
+        Core height (z units).
+    field : SmoothField
+    field_amplitude : float
+    """
+
+    centre: np.ndarray
+    width: np.ndarray
+    amplitude: float
+    field: SmoothField
+    field_amplitude: float
+
+    def __call__(self, xi: np.ndarray, eta: np.ndarray, lat: Lattice | None = None) -> np.ndarray:
+        """Values at (ξ, η); pass ``lat`` when (ξ, η) are ``lat.points()`` (faster, same values)."""
+        q = ((xi - self.centre[0]) / self.width[0]) ** 2 + ((eta - self.centre[1]) / self.width[1]) ** 2
+        return self.amplitude * np.exp(-0.5 * q) + self.field_amplitude * _smooth(self.field, xi, eta, lat)
+
+
+@dataclass(frozen=True, eq=False)
+class FlankField:
+    """The dimensionless field z(ξ, η) of one flank of one joint (see the module docstring).
+
+    Attributes
+    ----------
+    common : CommonShape
+        The flank side's common shape (the same object for every joint).
+    seat : float
+        Seating depth d: radial offset of the common shape (flank heights).
+    tilt : ndarray, shape (2,)
+        Misalignment gradient (dz/dξ, dz/dη).
+    variation : SmoothField
+    variation_amplitude : float
+    island_centre : ndarray, shape (k, 2)
+    island_radius : ndarray, shape (k,)
+    island_depth : ndarray, shape (k,)
+    """
+
+    common: CommonShape
+    seat: float
+    tilt: np.ndarray
+    variation: SmoothField
+    variation_amplitude: float
+    island_centre: np.ndarray
+    island_radius: np.ndarray
+    island_depth: np.ndarray
+
+    def __call__(self, xi: np.ndarray, eta: np.ndarray, lat: Lattice | None = None) -> np.ndarray:
+        """z at (ξ, η); pass ``lat`` when (ξ, η) are ``lat.points()`` (faster, same values)."""
+        seated = None if lat is None else lat.shifted(np.array([0.0, -self.seat]))
+        z = self.common(xi, eta - self.seat, seated) + self.variation_amplitude * _smooth(self.variation, xi, eta, lat)
+        z = z + self.tilt[0] * xi + self.tilt[1] * eta
+        for (cx, cy), r, h in zip(self.island_centre, self.island_radius, self.island_depth, strict=True):
+            z = z - h * np.exp(-((xi - cx) ** 2 + (eta - cy) ** 2) / (2 * r * r))
+        return z
+
+
+def _softplus(z: np.ndarray) -> np.ndarray:
+    return np.logaddexp(0.0, z)
+
+
+@dataclass(frozen=True, eq=False)
+class TruePressure:
+    """True contact-pressure fields of every joint and flank, and the contact patterns they imply.
+
+    Joints are numbered 1..n_joints as the slots of :mod:`rom`; the arrays :attr:`L`, :attr:`R`,
+    :attr:`threshold` and :attr:`fractions` are indexed by ``joint − 1``. Build it with
+    :func:`simulate_pressure`.
+
+    Attributes
+    ----------
+    u, v : ndarray of float64, shape (rows, cols)
+        Grid-node coordinates (m): axial (rows) and radial along the wall (columns).
+    fields : tuple of (FlankField, FlankField)
+        Per joint, the L and R flank fields.
+    threshold : ndarray of float64, shape (n_joints, 2)
+        Contact threshold pressure (Pa) per joint and flank (columns L, R).
+    params : PressureParams
+    L, R : ndarray of bool, shape (n_joints, rows, cols)
+        Derived: contact at the grid nodes (pressure > threshold), read-only.
+    """
+
+    u: np.ndarray
+    v: np.ndarray
+    fields: tuple[tuple[FlankField, FlankField], ...]
+    threshold: np.ndarray
+    params: PressureParams
+    L: np.ndarray = field(init=False, repr=False)
+    R: np.ndarray = field(init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        u, v = _check_grid(self.u, self.v)
+        thr = np.array(self.threshold, dtype=np.float64)
+        if thr.shape != (len(self.fields), 2):
+            raise ValueError(f"threshold must have shape (n_joints, 2) = ({len(self.fields)}, 2), got {thr.shape}")
+        for a in (u, v, thr):
+            a.flags.writeable = False
+        object.__setattr__(self, "u", u)
+        object.__setattr__(self, "v", v)
+        object.__setattr__(self, "threshold", thr)
+        for k, name in enumerate(FLANKS):
+            grids = np.stack([self.pressure(s, name, u, v) > thr[s - 1, k] for s in range(1, self.n_joints + 1)])
+            grids.flags.writeable = False
+            object.__setattr__(self, name, grids)
+
+    @property
+    def n_joints(self) -> int:
+        return len(self.fields)
+
+    @property
+    def grid(self) -> tuple[int, int]:
+        """Grid shape (rows, cols)."""
+        return self.u.shape
+
+    @property
+    def fractions(self) -> np.ndarray:
+        """Contact area fraction at the grid nodes, shape (n_joints, 2) (columns L, R)."""
+        return np.stack([self.L.mean(axis=(1, 2)), self.R.mean(axis=(1, 2))], axis=1)
+
+    def normalized(self, u: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Normalised flank coordinates (ξ, η) of physical points (u, v) in m (any equal shapes)."""
+        return _normalized(self.u, self.v, u, v)
+
+    def _index(self, joint: int, flank: str) -> tuple[int, int]:
+        if isinstance(joint, bool) or not isinstance(joint, (int, np.integer)) or not 1 <= joint <= self.n_joints:
+            raise ValueError(f"joint must be an integer in 1..{self.n_joints}, got {joint!r}")
+        if flank not in FLANKS:
+            raise ValueError(f"flank must be 'L' or 'R', got {flank!r}")
+        return int(joint) - 1, FLANKS.index(flank)
+
+    def pressure(self, joint: int, flank: str, u: np.ndarray, v: np.ndarray) -> np.ndarray:
+        """Contact pressure (Pa) of a joint's flank at physical points.
+
+        Parameters
+        ----------
+        joint : int
+            Joint (slot) number, 1..n_joints.
+        flank : {"L", "R"}
+        u, v : array_like of float, broadcastable shapes
+            Axial and radial positions (m), in the frame of :attr:`u`, :attr:`v`. Points off the flank are
+            evaluated by the same smooth formula (the caller decides where the surface ends).
+
+        Returns
+        -------
+        ndarray of float64, the broadcast shape of ``u`` and ``v``
+        """
+        s, k = self._index(joint, flank)
+        xi, eta = self.normalized(*np.broadcast_arrays(u, v))
+        return self.params.p_ref * _softplus(self.fields[s][k](xi, eta))
+
+    def pressure_on_lattice(
+        self,
+        joint: int,
+        flank: str,
+        origin: tuple[float, float],
+        row_step: tuple[float, float],
+        col_step: tuple[float, float],
+        shape: tuple[int, int],
+    ) -> np.ndarray:
+        """Contact pressure (Pa) on a regular lattice of points, e.g. an image's pixels.
+
+        The points are (u, v) = origin + r · row_step + c · col_step (all in m) for r < shape[0],
+        c < shape[1]. The values equal :meth:`pressure` at those points, computed separably (much faster on
+        large lattices).
+
+        Returns
+        -------
+        ndarray of float64, shape ``shape``
+        """
+        s, k = self._index(joint, flank)
+        o = np.array(self.normalized(*origin))
+        o0 = np.array(self.normalized(0.0, 0.0))
+        # ξ, η are affine in (u, v): a step's image is the difference of the images of the step and of 0.
+        lat = Lattice(o, np.array(self.normalized(*row_step)) - o0, np.array(self.normalized(*col_step)) - o0,
+                      (int(shape[0]), int(shape[1])))
+        xi, eta = lat.points()
+        return self.params.p_ref * _softplus(self.fields[s][k](xi, eta, lat))
+
+    def contact_threshold(self, joint: int, flank: str) -> float:
+        """Threshold pressure (Pa) above which a point of this joint's flank is in contact."""
+        s, k = self._index(joint, flank)
+        return float(self.threshold[s, k])
+
+    def patterns(self) -> list[ContactPattern]:
+        """Contact patterns at the grid nodes; element ``joint − 1`` belongs to joint ``joint``."""
+        return [ContactPattern(L, R) for L, R in zip(self.L, self.R, strict=True)]
+
+
+def _check_grid(u, v) -> tuple[np.ndarray, np.ndarray]:
+    u, v = np.array(u, dtype=np.float64), np.array(v, dtype=np.float64)
+    if u.ndim != 2 or u.shape != v.shape:
+        raise ValueError(f"u and v must be 2-D arrays of the same shape (rows, cols), got {u.shape} and {v.shape}")
+    if min(u.shape) < 2:
+        raise ValueError(f"the grid needs ≥ 2 rows and ≥ 2 columns, got shape {u.shape}")
+    if not (np.isfinite(u).all() and np.isfinite(v).all()):
+        raise ValueError("u and v must be finite")
+    if not (np.ptp(u) > 0 and np.ptp(v) > 0):
+        raise ValueError("u and v must each span a positive extent (m)")
+    return u, v
+
+
+def _normalized(u_grid, v_grid, u, v) -> tuple[np.ndarray, np.ndarray]:
+    u0, u1, v0, v1 = u_grid.min(), u_grid.max(), v_grid.min(), v_grid.max()
+    xi = (np.asarray(u, np.float64) - 0.5 * (u0 + u1)) / (u1 - u0)
+    return xi, (np.asarray(v, np.float64) - 0.5 * (v0 + v1)) / (v1 - v0)
+
+
+def _threshold(p: np.ndarray, fraction: float, lo: float, hi: float, window: float, margin: float) -> float:
+    """Threshold for the node pressures ``p`` (Pa) giving a contact fraction near ``fraction``, within [lo, hi].
+
+    The contacting count k starts at round(fraction·n), clipped into [lo·n, hi·n] and 1..n−1. It may then move
+    by up to ``window``·n nodes (at least one). Each candidate threshold is the geometric midpoint between the
+    k-th highest node pressure and the next; the one kept has the fewest expected misreadings
+    Σ_i Φ(−|ln p_i − ln t| / margin), i.e. few nodes within a hair of it, where their contact state would be
+    a coin toss for any reading (and in the real joint).
+    """
+    n = p.size
+    k_lo, k_hi = max(math.ceil(lo * n - 1e-9), 1), min(math.floor(hi * n + 1e-9), n - 1)
+    if k_lo > k_hi:
+        raise ValueError(f"a grid of {n} nodes has no node count with a fraction in [{lo}, {hi}] (and 0 < k < n)")
+    k0 = min(max(round(fraction * n), k_lo), k_hi)
+    w = max(1, round(window * n))
+    q = np.log(np.sort(p.ravel()))[::-1]  # descending: the k highest nodes are q[:k]
+    ks = np.arange(max(k0 - w, k_lo), min(k0 + w, k_hi) + 1)
+    t = 0.5 * (q[ks - 1] + q[ks])
+    if margin > 0:
+        risk = ndtr(-np.abs(q[None, :] - t[:, None]) / margin).sum(axis=1)
+    else:
+        risk = -(q[ks - 1] - q[ks])  # the widest gap
+    return float(np.exp(t[np.argmin(risk)]))
+
+
+def simulate_pressure(
+    u: np.ndarray, v: np.ndarray, n_joints: int, rng: np.random.Generator, params: PressureParams | None = None
+) -> TruePressure:
+    """Draw the true contact-pressure fields of ``n_joints`` joints.
+
+    Parameters
+    ----------
+    u, v : array_like of float, shape (rows, cols)
+        Grid-node coordinates (m): axial along the rows, radial along the columns (:func:`flank_coordinates`).
+        Any grid shape with ≥ 2 rows and columns.
+    n_joints : int
+        Number of joints (slots), any positive integer.
+    rng : numpy.random.Generator
+        Source of all randomness. The common shapes are drawn first, then joint after joint, so the first
+        joints do not change when ``n_joints`` grows.
+    params : PressureParams, optional
+
+    Returns
+    -------
+    TruePressure
+        Every flank's contact fraction lies in ``params.fraction_range`` (node counts are rounded into it),
+        and every joint is a valid :class:`rom.contact.ContactPattern`.
+
+    Raises
+    ------
+    ValueError
+        If the grid is too small for the fraction range (no whole node count inside it) or a joint would not
+        hold three non-collinear contacting nodes.
+    """
+    p = params or PressureParams()
+    if isinstance(n_joints, bool) or not isinstance(n_joints, (int, np.integer)) or n_joints < 1:
+        raise ValueError(f"n_joints must be a positive integer, got {n_joints!r}")
+    u, v = _check_grid(u, v)
+    commons = tuple(
+        CommonShape(
+            centre=rng.uniform(-p.core_offset, p.core_offset, 2),
+            width=p.core_width * rng.uniform(0.75, 1.25, 2),
+            amplitude=p.core_amplitude,
+            field=SmoothField.draw(rng, p.n_features, p.length_scale),
+            field_amplitude=p.shape_amplitude,
+        )
+        for _ in FLANKS
+    )
+    xi, eta = _normalized(u, v, u, v)
+    fields, thresholds = [], []
+    for _ in range(int(n_joints)):
+        seat = rng.normal(0.0, p.seating_spread)
+        g_axial, g_radial = rng.normal(0.0, p.tilt_spread, 2)
+        pair, thr = [], []
+        for k, common in enumerate(commons):
+            n_isl = rng.poisson(p.islands)
+            f = FlankField(
+                common=common,
+                seat=seat,
+                tilt=np.array([g_axial if k == 0 else -g_axial, g_radial]),
+                variation=SmoothField.draw(rng, p.n_features, p.variation_length_scale),
+                variation_amplitude=p.variation,
+                island_centre=rng.uniform(-0.5, 0.5, (n_isl, 2)),
+                island_radius=rng.uniform(*p.island_radius, n_isl),
+                island_depth=rng.uniform(*p.island_depth, n_isl),
+            )
+            target = rng.uniform(*p.fraction_range)
+            p_nodes = p.p_ref * _softplus(f(xi, eta))
+            thr.append(_threshold(p_nodes, target, *p.fraction_range, p.fraction_window, p.threshold_margin))
+            pair.append(f)
+        fields.append(tuple(pair))
+        thresholds.append(thr)
+    truth = TruePressure(u, v, tuple(fields), np.array(thresholds), p)
+    truth.patterns()  # fail here, not in a later ROM, if a tiny grid cannot hold 3 non-collinear contacts
+    return truth

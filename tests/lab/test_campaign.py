@@ -1,0 +1,147 @@
+"""``bladetwin lab simulate``: a complete small campaign, read back by ``ema``, that recovers the truth.
+
+Issue 9 acceptance, on a small campaign (coarse mesh, 6 blades, 3×7 grid): every file readable, the EMA
+front end (automatic selection, no frequencies given) recovers ``truth.json``, and bad arguments give one
+line naming the value.
+"""
+
+import json
+import tomllib
+
+import numpy as np
+import pytest
+
+import ema
+from bladetwin.cli import main
+
+SMALL = ["--level", "coarse", "--blades", "6", "--grid", "3x7"]
+
+
+@pytest.fixture(scope="module")
+def campaign(tmp_path_factory):
+    out = tmp_path_factory.mktemp("lab") / "small"
+    assert main(["lab", "simulate", *SMALL, "--seed", "3", "--out", str(out)]) == 0
+    return out, json.loads((out / "truth" / "truth.json").read_text())
+
+
+def _fit(path):
+    return ema.fit(ema.read_uff(path)).model
+
+
+def _errors_pct(found, truth):
+    """For each truth frequency, the relative distance (%) to the nearest found one."""
+    found = np.asarray(found)
+    return np.array([np.min(np.abs(found / f - 1)) * 100 if found.size else np.inf for f in truth])
+
+
+def test_campaign_is_complete_and_every_file_reads(campaign):
+    out, truth = campaign
+    manifest = tomllib.loads((out / "campaign.toml").read_text())
+    assert manifest["campaign"]["n_blades"] == 6 and manifest["campaign"]["grid"] == [3, 7]
+    kinds = [t["type"] for t in manifest["tests"]]
+    assert kinds.count("blade") == 6 and kinds.count("d1b") == 6 and kinds.count("disk") == kinds.count("assembly") == 1
+    for test in manifest["tests"]:
+        frf = ema.read_uff(out / test["file"])
+        assert frf.form == "mobility" and frf.n_outputs >= 1
+    known = manifest["campaign"]["known_joints"]
+    assert sorted({f["joint"] for f in manifest["films"]}) == known and len(manifest["films"]) == 2 * len(known)
+    for f in manifest["films"]:
+        assert (out / f["file"]).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert len(list((out / "truth" / "films").glob("*.png"))) == 12
+    with np.load(out / "truth" / "patterns.npz") as z:
+        assert z["L"].shape == z["R"].shape == (6, 3, 7) and z["L"].dtype == bool
+    for key in ("seed", "n_blades", "grid", "known_joints", "blade_deltas_pct", "frequencies_hz", "damping_ratios"):
+        assert key in truth
+    assert set(truth["frequencies_hz"]) == {"blades", "disk", "d1b", "assembly"}
+    zeta = np.concatenate([np.ravel(z) for z in truth["damping_ratios"]["blades"]])
+    assert np.all((zeta >= 0.0005) & (zeta <= 0.005))
+    assert not list(out.parent.glob(".small.*"))  # the temporary folder was renamed, nothing left beside it
+
+
+def test_ema_recovers_blades_disk_and_joints(campaign):
+    out, truth = campaign
+    f = truth["frequencies_hz"]
+    models = {}
+    for s in range(1, 7):
+        m = _fit(out / "blades" / f"blade_{s:02d}.uff")
+        models[f"blade_{s:02d}"] = m
+        assert np.max(_errors_pct(m.frequency_hz, f["blades"][s - 1][:8])) <= 0.05, s
+    disk = ema.fit(ema.read_uff(out / "disk" / "disk.uff")).model
+    table = ema.disk_modes(disk)
+    err = _errors_pct(table["frequency_hz"], f["disk"][:7])
+    assert np.max(err) <= 0.1, err
+    for k, ft in enumerate(f["disk"][:7]):
+        j = int(np.argmin(np.abs(table["frequency_hz"].to_numpy() - ft)))
+        assert int(table["nodal_diameter"].iloc[j]) == truth["disk_nodal_diameters"][k]
+    for s in range(1, 7):
+        m = _fit(out / "d1b" / f"joint_{s:02d}.uff")
+        assert np.max(_errors_pct(m.frequency_hz, f["d1b"][s - 1][:10])) <= 0.1, s
+    deltas = ema.blade_deltas(models)
+    exact = np.array(truth["blade_deltas_pct"])
+    n = min(deltas.shape[1], exact.shape[1], 8)
+    np.testing.assert_allclose(deltas.to_numpy()[:, :n], exact[:, :n], atol=0.05)
+
+
+def test_ema_recovers_the_full_assembly(campaign):
+    out, truth = campaign
+    m = _fit(out / "assembly" / "assembly.uff")
+    visible = truth["frequencies_hz"]["assembly"]
+    err = _errors_pct(m.frequency_hz, visible)
+    assert np.mean(err <= 0.2) >= 0.9, err
+    every = np.asarray(truth["all_frequencies_hz"]["assembly"])
+    worst = max(np.min(np.abs(every / fe - 1)) * 100 for fe in m.frequency_hz)
+    assert worst <= 1.0, worst
+
+
+def test_case_c_pairs_the_rom_with_the_measured_modes(campaign, tmp_path):
+    """Case C runs on a campaign as a user's pipeline would, and the model error stays that of a model."""
+    from lab.model_error import case_c
+
+    out, _ = campaign
+    err = case_c(out, cache_dir=tmp_path / "cache").summary()
+    assert err["full"]["n_paired"] >= 0.7 * err["full"]["n_ema_modes"]
+    assert 0 < err["full"]["mean_abs_df_pct"] < 2.0 and err["full"]["mean_mac"] > 0.7
+    assert 0 < err["d1b"]["mean_abs_df_pct"] < 2.0 and err["d1b"]["mean_mac"] > 0.8
+
+
+def test_same_seed_same_campaign(tmp_path):
+    a, b = tmp_path / "a", tmp_path / "b"
+    for out in (a, b):
+        assert main(["lab", "simulate", "--level", "coarse", "--blades", "3", "--grid", "3x7", "--seed", "8",
+                     "--out", str(out), "--json"]) == 0
+    ta, tb = (json.loads((p / "truth" / "truth.json").read_text()) for p in (a, b))
+    with np.load(a / "truth" / "patterns.npz") as za, np.load(b / "truth" / "patterns.npz") as zb:
+        np.testing.assert_array_equal(za["L"], zb["L"])
+        np.testing.assert_array_equal(za["R"], zb["R"])
+    for group in ("blades", "d1b"):
+        for fa, fb in zip(ta["frequencies_hz"][group], tb["frequencies_hz"][group], strict=True):
+            np.testing.assert_allclose(fa, fb, rtol=1e-9)
+    np.testing.assert_allclose(ta["frequencies_hz"]["assembly"], tb["frequencies_hz"]["assembly"], rtol=1e-9)
+
+
+@pytest.mark.parametrize("args, needle", [
+    (["--blades", "1"], "n_blades"),
+    (["--blades", "0"], "n_blades"),
+    (["--grid", "3x6"], "grid[1]"),
+    (["--grid", "1x7"], "grid[0]"),
+    (["--known", "2,9"], "known joints [2, 9]"),
+    (["--known", "a"], "--known"),
+])
+def test_bad_arguments_are_one_line_errors(tmp_path, capsys, args, needle):
+    out = tmp_path / "c"
+    rc = main(["lab", "simulate", "--level", "coarse", "--grid", "3x7", "--blades", "4", *args, "--out", str(out)])
+    err = capsys.readouterr().err.strip()
+    assert rc == 2 and len(err.splitlines()) == 1 and needle in err, err
+    assert not out.exists()
+
+
+def test_unwritable_output_folder(tmp_path, capsys):
+    locked = tmp_path / "locked"
+    locked.mkdir()
+    (locked / "file").write_text("x")
+    rc = main(["lab", "simulate", *SMALL, "--out", str(locked / "file" / "c")])
+    err = capsys.readouterr().err.strip()
+    assert rc == 2 and len(err.splitlines()) == 1 and "file" in err, err
+    rc = main(["lab", "simulate", *SMALL, "--out", str(locked)])  # not empty
+    err = capsys.readouterr().err.strip()
+    assert rc == 2 and str(locked) in err and "not an empty folder" in err

@@ -1,0 +1,73 @@
+"""The truth twin: contact springs against exact ties, FE-level blade variation, conformity, determinism."""
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from lab.truth import TruthParams, assemble_truth, make_truth_twin, solve_truth
+from rom.contact import ContactPattern
+from rom.fe_assembly import assemble_fe, solve_fe
+from rom.solver import solve_modes
+
+NOMINAL = TruthParams(thickness_spread=0, chord_spread=0, span_spread=0, modulus_spread=0, fillet_fraction=0)
+
+
+@pytest.fixture(scope="module")
+def patterns(coarse_bd):
+    rng = np.random.default_rng(3)
+    return [ContactPattern.random(coarse_bd.params.grid, 0.6, rng) for _ in range(coarse_bd.n_slots)]
+
+
+def test_stiff_springs_converge_to_the_tied_fe_assembly_from_below(coarse_bd, patterns):
+    """Springs → ∞ approach the exact ties of ``rom`` (an independent assembly); finite springs only lower ω."""
+    tied = solve_fe(assemble_fe(coarse_bd, {2: patterns[1]}), 8).frequencies_hz
+    errors = []
+    for k in (5e13, 5e15, 5e17):
+        twin = make_truth_twin(coarse_bd, patterns, np.random.default_rng(0),
+                               dataclasses.replace(NOMINAL, contact_stiffness_n_per_m3=k))
+        f = solve_truth(assemble_truth(twin, [2]), 8).frequencies_hz
+        assert np.all(f <= tied * (1 + 1e-9))  # a spring is softer than a tie (Rayleigh's monotonicity)
+        errors.append(np.max(np.abs(f / tied - 1)))
+    assert errors[0] > errors[1] > errors[2] and errors[2] < 1e-5, errors
+
+
+def test_nominal_blades_are_the_rom_blade_and_varied_roots_conform(coarse_bd, patterns):
+    twin = make_truth_twin(coarse_bd, patterns, np.random.default_rng(0), NOMINAL)
+    assert (twin.blades[0].K != coarse_bd.blade.K).nnz == 0
+    varied = make_truth_twin(coarse_bd, patterns, np.random.default_rng(0))
+    for s, blade in enumerate(varied.blades, start=1):
+        for f in ("L", "R"):
+            grid = blade.node_set(f)
+            np.testing.assert_array_equal(blade.coords[grid], coarse_bd.blade.coords[grid])
+        assert blade.name == f"blade{s}"
+
+
+def test_blade_variation_looks_like_paper_table2(coarse_bd, patterns):
+    """Deltas of tenths of a percent to ~2 %, and one mode family where the fillet blades stand apart."""
+    twin = make_truth_twin(coarse_bd, patterns, np.random.default_rng(11))
+    f = np.array([solve_modes(b.K, b.M, 6).frequencies_hz for b in twin.blades])
+    lam = f**2
+    delta = 100 * (lam - lam.mean(0)) / lam.mean(0)
+    fillet = np.array([v.fillet for v in twin.variations])
+    assert 0 < fillet.sum() < fillet.size
+    plain = delta[~fillet]
+    spread = plain.std(axis=0)
+    assert np.all((spread > 0.1) & (spread < 2.0)), spread
+    gap = delta[fillet].mean(axis=0) - plain.mean(axis=0)
+    assert np.max(np.abs(gap) / spread) > 4, (gap, spread)
+
+
+def test_same_seed_same_twin(coarse_bd, patterns):
+    a = make_truth_twin(coarse_bd, patterns, np.random.default_rng(5))
+    b = make_truth_twin(coarse_bd, patterns, np.random.default_rng(5))
+    assert a.variations == b.variations
+    c = make_truth_twin(coarse_bd, patterns, np.random.default_rng(6))
+    assert a.variations != c.variations
+
+
+def test_bad_truth_inputs(coarse_bd, patterns):
+    with pytest.raises(ValueError, match="one true pattern per slot"):
+        make_truth_twin(coarse_bd, patterns[:3], np.random.default_rng(0))
+    with pytest.raises(ValueError, match="contact_stiffness"):
+        make_truth_twin(coarse_bd, patterns, np.random.default_rng(0), TruthParams(contact_stiffness_n_per_m3=-1))
