@@ -144,9 +144,10 @@ def solve_modes(
 
     Lanczos (ARPACK) finds one vector per eigenspace in exact arithmetic, so from an unlucky start vector it
     can miss one copy of a repeated eigenvalue: a free body's six-fold rigid-body eigenvalue, or a cyclic
-    disk's double nodal-diameter pairs. After the first solve, a second, *deflated* solve on the M-orthogonal
-    complement of the modes found looks for anything left below the highest mode kept; missed modes are
-    added and the check repeats. The result is therefore complete whatever the start vector.
+    disk's double nodal-diameter pairs. After the first solve, a cheap block test on the M-orthogonal
+    complement of the modes found looks for anything left below the highest mode kept; only if it finds
+    something does a deflated Lanczos run add the missed modes, and the check repeats. The result is
+    therefore complete whatever the start vector (docs/design.md §8.11).
 
     Parameters
     ----------

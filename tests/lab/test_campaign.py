@@ -101,7 +101,9 @@ def test_case_c_pairs_the_rom_with_the_measured_modes(campaign, tmp_path):
     err = case_c(out, cache_dir=tmp_path / "cache").summary()
     assert err["full"]["n_paired"] >= 0.7 * err["full"]["n_ema_modes"]
     assert 0 < err["full"]["mean_abs_df_pct"] < 2.0 and err["full"]["mean_mac"] > 0.7
-    assert 0 < err["d1b"]["mean_abs_df_pct"] < 2.0 and err["d1b"]["mean_mac"] > 0.8
+    # d1b modes are paired by frequency: seen from 3 blade points and one point per sector, the blade tip
+    # dominates every shape and MAC cannot tell them apart (lab.model_error._pair).
+    assert 0 < err["d1b"]["mean_abs_df_pct"] < 1.0 and err["d1b"]["max_abs_df_pct"] < 3.0
 
 
 def test_same_seed_same_campaign(tmp_path):
