@@ -184,9 +184,9 @@ def _write(spec: CampaignSpec, params: AcademicParams, known: tuple[int, ...], r
     n_files = 0
 
     def run_test(kind: str, rel: str, slots, with_disk: bool, n_wanted: int, inputs_of, families: int = 0) -> dict:
-        max_lines = spec.max_lines[kind]
         """One test; ``families`` > 0: the band covers that many blade-mode families (n_blades modes each)."""
         nonlocal n_files
+        max_lines = spec.max_lines[kind]
         asm = assemble_truth(twin, slots, with_disk=with_disk)
         # Compute past the modes of interest: invisible (in-plane) modes interleave with them, and the modes
         # above the band leave their residual effect at its upper edge.
