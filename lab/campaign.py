@@ -239,21 +239,21 @@ def _write(spec: CampaignSpec, params: AcademicParams, known: tuple[int, ...], r
             else:
                 truth[key][group] = result[key]
 
-    for s in range(1, params.n_blades + 1):
-        say(f"free blade {s}/{params.n_blades}")
-        rel = f"blades/blade_{_nn(s)}.uff"
-        record("blades", run_test("blade", rel, [s], False, BLADE_MODES, blade_tip))
-        manifest["tests"].append({"type": "blade", "file": rel, "blade": s})
+    def per_slot(kind: str, group: str, folder: str, stem: str, key: str, with_disk: bool, n_wanted: int) -> None:
+        """One test per slot: the free blades, or each blade in its own slot of the disk (d1b)."""
+        for s in range(1, params.n_blades + 1):
+            say(f"{kind} {s}/{params.n_blades}")
+            rel = f"{folder}/{stem}_{_nn(s)}.uff"
+            record(group, run_test(kind, rel, [s], with_disk, n_wanted, blade_tip))
+            manifest["tests"].append({"type": kind, "file": rel, key: s})
+
+    per_slot("blade", "blades", "blades", "blade", "blade", False, BLADE_MODES)
     say("free disk")
     disk = run_test("disk", "disk/disk.uff", (), True, DISK_MODES, disk_first)
     record("disk", disk)
     truth["disk_nodal_diameters"] = disk["nodal_diameters"]
     manifest["tests"].append({"type": "disk", "file": "disk/disk.uff"})
-    for s in range(1, params.n_blades + 1):
-        say(f"disk-one-blade {s}/{params.n_blades}")
-        rel = f"d1b/joint_{_nn(s)}.uff"
-        record("d1b", run_test("d1b", rel, [s], True, D1B_MODES, blade_tip))
-        manifest["tests"].append({"type": "d1b", "file": rel, "joint": s})
+    per_slot("d1b", "d1b", "d1b", "joint", "joint", True, D1B_MODES)
     say("full bladed disk")
 
     def spread_tips(labels) -> list[int]:
