@@ -20,7 +20,7 @@ import numpy as np
 from scipy.optimize import linear_sum_assignment
 
 import ema
-from ema.mac import common_dofs
+from ema.mac import common_dofs, mac
 from rom import cache
 from rom.academic import AcademicParams, build_bladed_disk
 from rom.contact import ContactPattern
@@ -123,7 +123,7 @@ def _pair(measured: ema.ModalModel, model: ema.ModalModel, n_first: int | None =
     ok = np.abs(rel[rows, cols]) <= 0.05
     rows, cols = rows[ok], cols[ok]
     pa, pb, _ = common_dofs(measured, model)
-    return rows, cols, rel[rows, cols], np.diag(ema.mac(pa[:, rows], pb[:, cols])) if rows.size else np.zeros(0)
+    return rows, cols, rel[rows, cols], np.diag(mac(pa[:, rows], pb[:, cols])) if rows.size else np.zeros(0)
 
 
 def case_c(
