@@ -27,6 +27,9 @@ def _add_fit_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--no-refine", action="store_true", help="keep the estimator's poles (no nonlinear refinement)")
     p.add_argument("--form", choices=("receptance", "mobility", "accelerance"),
                    help="FRF form when the files do not state it")
+    p.add_argument("--nonfinite", choices=("refuse", "drop"), default="refuse",
+                   help="NaN/inf lines: refuse the file (default) or drop those lines from every FRF, with a "
+                        "warning that names them")
 
 
 def _criteria(args: argparse.Namespace):
@@ -80,7 +83,7 @@ def _cmd_fit(args: argparse.Namespace) -> int:
     if args.plot and Path(args.plot).is_dir():
         # Refuse before the fit, not after it.
         raise ValueError(f"--plot {args.plot}: is a directory; expected an image file name such as stab.png")
-    frf = read_frfs(args.files, form=args.form)
+    frf = read_frfs(args.files, form=args.form, nonfinite=args.nonfinite)
     result = _fit(frf, args, freqs=args.freqs)
     if args.plot:
         from ema.plots import plot_stabilization
@@ -134,7 +137,7 @@ def _fit_each(args: argparse.Namespace) -> dict:
 
     models = {}
     for path in _uff_files(args.dir):
-        result = _fit(read_uff(path, form=args.form), args)
+        result = _fit(read_uff(path, form=args.form, nonfinite=args.nonfinite), args)
         models[path.stem] = result.model
     return models
 
@@ -159,7 +162,7 @@ def _cmd_joints(args: argparse.Namespace) -> int:
 def _cmd_disk(args: argparse.Namespace) -> int:
     from ema import disk_modes, read_frfs
 
-    frf = read_frfs(_uff_files(args.dir), form=args.form)
+    frf = read_frfs(_uff_files(args.dir), form=args.form, nonfinite=args.nonfinite)
     _emit({"disk_modes": disk_modes(_fit(frf, args).model)}, args)
     return 0
 
@@ -169,7 +172,7 @@ def _cmd_assembly(args: argparse.Namespace) -> int:
 
     from ema import read_frfs
 
-    result = _fit(read_frfs(_uff_files(args.dir), form=args.form), args)
+    result = _fit(read_frfs(_uff_files(args.dir), form=args.form, nonfinite=args.nonfinite), args)
     m = result.model
     table = pd.DataFrame(
         {"frequency_hz": m.frequency_hz, "damping_ratio": m.damping_ratio, "dominance": result.dominance,

@@ -322,6 +322,10 @@ def test_nan_block_through_the_cli(tmp_path, capsys):
     path = _write(tmp_path / "nan.uff", _case(n_o=3))
     _poke(path, 0, range(100), np.nan, True)
     _cli_error(capsys, _fit_cli(path), path, "data set 0", "non-finite", "0.5-50 Hz")
+    # The opt-in repair: the lines go, a warning names them, and the modes above them are still found.
+    with pytest.warns(UserWarning, match=r"dropped 100 lines, 0.5-50 Hz"):
+        assert main([str(a) for a in _fit_cli(path, extra=("--nonfinite", "drop"))]) == 0
+    _assert_modes(np.array([m["frequency_hz"] for m in json.loads(capsys.readouterr().out)["modes"]]))
 
 
 # --------------------------------------------------------------------------------------- extreme scales
