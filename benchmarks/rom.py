@@ -58,14 +58,16 @@ def _case(bd):
 
 
 def _save_modes(path: Path, modes) -> None:
-    np.savez(path, f=modes.frequencies_hz, s=modes.meas_shapes)
+    # Labels as JSON strings: a unicode array loads without pickles, and the comparison checks them.
+    labels = np.array([json.dumps(list(lab)) for lab in modes.meas_labels])
+    np.savez(path, f=modes.frequencies_hz, s=modes.meas_shapes, labels=labels)
 
 
 def _load_modes(path: Path):
     from rom.fe_assembly import AssemblyModes
 
     with np.load(path, allow_pickle=False) as z:
-        return AssemblyModes(z["f"], z["s"], [])
+        return AssemblyModes(z["f"], z["s"], [tuple(json.loads(str(lab))) for lab in z["labels"]])
 
 
 def run_step(step: str, level: str, workdir: Path) -> dict:
