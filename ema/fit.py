@@ -13,7 +13,7 @@ from typing import NamedTuple
 import numpy as np
 
 from .errors import EMAError
-from .frf import FRF_FORMS, FRFSet, convert_form
+from .frf import FRF_FORMS, FRFSet
 from .lscf import lscf
 from .lsfd import dominance, fit_quality, modal_model, refine_poles, synthesize
 from .lsrf import lsrf
@@ -378,15 +378,9 @@ def _without(frf: FRFSet, model: ModalModel, modes: np.ndarray) -> FRFSet:
     idx = np.flatnonzero(modes)
     if idx.size == 0:
         return frf
-    jw = 1j * 2 * np.pi * frf.freq_hz
-    lam = model.poles[idx]
-    A = model.residues[idx]
-    H = np.einsum("rab,rf->abf", A, 1.0 / (jw[None, :] - lam[:, None]))
-    H += np.einsum("rab,rf->abf", A.conj(), 1.0 / (jw[None, :] - lam.conj()[:, None]))
-    H *= jw ** FRF_FORMS[model.form]
-    if model.form != frf.form:
-        H = convert_form(H, frf.freq_hz, model.form, frf.form)
-    return replace(frf, H=frf.H - H)
+    # The modal terms alone (no residual terms): those belong to the band being refined.
+    terms = replace(model.take(idx), lower_residual=None, upper_residual=None)
+    return replace(frf, H=frf.H - synthesize(terms, frf.freq_hz, form=frf.form).H)
 
 
 def _band_mask(band: tuple[float, float]):
