@@ -24,11 +24,12 @@ from ema.mac import common_dofs, mac
 from rom import cache
 from rom.academic import AcademicParams, build_bladed_disk
 from rom.contact import ContactPattern
+from rom.mistuning import rom_deltas
 from rom.rom_assembly import solve_d1b, solve_full
 
 from .rig import dof_label
 
-__all__ = ["ModelError", "case_c", "rom_deltas"]
+__all__ = ["ModelError", "case_c", "rom_deltas"]  # rom_deltas lives in rom.mistuning
 
 
 @dataclass(frozen=True, eq=False)
@@ -62,31 +63,6 @@ class ModelError:
                     "mean_abs_df_pct": float(100 * np.nanmean(np.abs(self.d1b_rel_err))),
                     "mean_mac": float(np.nanmean(self.d1b_mac))},
         }
-
-
-def rom_deltas(blade_freqs: np.ndarray, deltas_pct: np.ndarray, rom_freqs_hz: np.ndarray) -> np.ndarray:
-    """ROM mistuning δ (fractions, Eq. 19) from measured blade deltas (%, Eq. 37).
-
-    Each tracked measured mode is matched to the ROM blade's free-interface mode nearest in frequency
-    (one-to-one); unmatched ROM modes stay tuned.
-
-    Parameters
-    ----------
-    blade_freqs : ndarray, shape (n_blades, k)
-        Measured frequencies of the tracked modes (Hz; NaN where a blade lacks a mode).
-    deltas_pct : ndarray, shape (n_blades, k)
-    rom_freqs_hz : ndarray, shape (m,)
-
-    Returns
-    -------
-    ndarray, shape (n_blades, m)
-    """
-    mean_f = np.nanmean(blade_freqs, axis=0)
-    cost = np.abs(rom_freqs_hz[None, :] / mean_f[:, None] - 1)
-    rows, cols = linear_sum_assignment(cost)
-    out = np.zeros((blade_freqs.shape[0], rom_freqs_hz.size))
-    out[:, cols] = np.nan_to_num(deltas_pct[:, rows]) / 100
-    return out
 
 
 def _rom_model(modes) -> ema.ModalModel:
@@ -126,6 +102,11 @@ def _pair(measured: ema.ModalModel, model: ema.ModalModel, n_first: int | None =
     return rows, cols, rel[rows, cols], np.diag(mac(pa[:, rows], pb[:, cols])) if rows.size else np.zeros(0)
 
 
+def _ema(root: Path, test: dict) -> ema.ModalModel:
+    """Automatic EMA of one test of the manifest, with the lab's ``max_order`` where it gives one."""
+    return ema.fit(ema.read_uff(root / test["file"]), max_order=int(test.get("max_order", 60))).model
+
+
 def case_c(
     campaign: str | Path, *, cache_dir=None, n_d1b_modes: int = 10, progress: Callable[[str], None] | None = None
 ) -> ModelError:
@@ -140,8 +121,7 @@ def case_c(
     tests = manifest["tests"]
 
     say("EMA of the blades")
-    blade_models = {f"blade_{t['blade']:02d}": ema.fit(ema.read_uff(root / t["file"])).model
-                    for t in tests if t["type"] == "blade"}
+    blade_models = {f"blade_{t['blade']:02d}": _ema(root, t) for t in tests if t["type"] == "blade"}
     freqs = ema.campaign.frequency_table(blade_models).to_numpy()
     deltas = ema.blade_deltas(blade_models).to_numpy()
 
@@ -156,7 +136,7 @@ def case_c(
     for t in (t for t in tests if t["type"] == "d1b"):
         s = int(t["joint"])
         say(f"disk-one-blade {s}")
-        measured = ema.fit(ema.read_uff(root / t["file"])).model
+        measured = _ema(root, t)
         rom_modes = solve_d1b(cb, blade, patterns[s - 1], s, n_modes=2 * n_d1b_modes + 6, delta=delta[s - 1])
         i, _, rel, mac = _pair(measured, _rom_model(rom_modes), n_d1b_modes, by="frequency")
         d1b_err[s - 1, i] = rel  # (f_ROM − f_EMA) / f_EMA
@@ -164,7 +144,7 @@ def case_c(
 
     say("full assembly: EMA")
     full_test = next(t for t in tests if t["type"] == "assembly")
-    measured = ema.fit(ema.read_uff(root / full_test["file"])).model
+    measured = _ema(root, full_test)
     say("full assembly: ROM")
     # Enough ROM modes to cover the measured band (+5 %, the pairing window): invisible modes interleave.
     n_rom = measured.n_modes + params.n_blades

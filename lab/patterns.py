@@ -50,39 +50,13 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.special import ndtr
 
-from rom.academic import BladedDisk
+from rom.academic import flank_coordinates
 from rom.contact import ContactPattern
 
 __all__ = ["PressureParams", "TruePressure", "flank_coordinates", "simulate_pressure"]
 
 FLANKS = ("L", "R")
 _CHUNK = 1 << 15
-
-
-def flank_coordinates(bd: BladedDisk) -> tuple[np.ndarray, np.ndarray]:
-    """Physical in-plane coordinates of the contact-grid nodes of a blade root flank.
-
-    Parameters
-    ----------
-    bd : rom.academic.BladedDisk
-        The bladed disk; the blade's node sets ``"L"`` and ``"R"`` have the grid shape (rows, cols).
-
-    Returns
-    -------
-    u : ndarray of float64, shape (rows, cols)
-        Axial position of each node (m, the blade's local z); it varies along the rows.
-    v : ndarray of float64, shape (rows, cols)
-        Radial position along the slot wall (m, the blade's local y); it increases with the column.
-
-    Raises
-    ------
-    ValueError
-        If the L and R flanks do not share the same (u, v) layout.
-    """
-    X = {f: bd.blade.coords[bd.blade.node_set(f)] for f in FLANKS}  # (rows, cols, 3): x thickness, y radial, z axial
-    if not np.allclose(X["L"][..., 1:], X["R"][..., 1:], rtol=0.0, atol=1e-12):
-        raise ValueError("flanks L and R of the blade do not share the same (radial, axial) node layout")
-    return X["L"][..., 2].astype(np.float64), X["L"][..., 1].astype(np.float64)
 
 
 @dataclass(frozen=True)

@@ -34,7 +34,9 @@ from .errors import ROMError
 from .hex20 import assemble
 from .mesh import StructuredMesh, structured_hex20
 
-__all__ = ["Material", "AcademicParams", "BladedDisk", "build_bladed_disk", "check_slot", "MESH_LEVELS"]
+__all__ = [
+    "Material", "AcademicParams", "BladedDisk", "build_bladed_disk", "check_slot", "flank_coordinates", "MESH_LEVELS",
+]
 
 #: Mesh resolution per level: cells per tooth half, per slot (hub), hub rings, blade cells through the
 #: thickness, in the shank and along the airfoil span. The contact grid fixes the rim rings and the axial
@@ -366,3 +368,30 @@ def build_bladed_disk(params: AcademicParams | None = None) -> BladedDisk:
         elements=bmesh.conn,
     )
     return BladedDisk(p, disk, blade)
+
+
+def flank_coordinates(bd: BladedDisk) -> tuple[np.ndarray, np.ndarray]:
+    """Physical in-plane coordinates of the contact-grid nodes of a blade root flank.
+
+    Parameters
+    ----------
+    bd : rom.academic.BladedDisk
+        The bladed disk; the blade's node sets ``"L"`` and ``"R"`` have the grid shape (rows, cols).
+
+    Returns
+    -------
+    u : ndarray of float64, shape (rows, cols)
+        Axial position of each node (m, the blade's local z); it varies along the rows.
+    v : ndarray of float64, shape (rows, cols)
+        Radial position along the slot wall (m, the blade's local y); it increases with the column.
+
+    Raises
+    ------
+    ValueError
+        If the L and R flanks do not share the same (u, v) layout.
+    """
+    # (rows, cols, 3) per flank: x thickness, y radial, z axial
+    X = {f: bd.blade.coords[bd.blade.node_set(f)] for f in ("L", "R")}
+    if not np.allclose(X["L"][..., 1:], X["R"][..., 1:], rtol=0.0, atol=1e-12):
+        raise ValueError("flanks L and R of the blade do not share the same (radial, axial) node layout")
+    return X["L"][..., 2].astype(np.float64), X["L"][..., 1].astype(np.float64)

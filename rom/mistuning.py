@@ -9,8 +9,9 @@ modes stay tuned.
 from __future__ import annotations
 
 import numpy as np
+from scipy.optimize import linear_sum_assignment
 
-__all__ = ["as_delta", "as_deltas"]
+__all__ = ["as_delta", "as_deltas", "rom_deltas"]
 
 
 def as_delta(delta, m: int) -> np.ndarray:
@@ -64,3 +65,28 @@ def as_deltas(deltas, n_blades: int, m: int) -> np.ndarray:
     if len(rows) != n_blades:
         raise ValueError(f"deltas must have one row per blade ({n_blades}), got {len(rows)}")
     return np.vstack([as_delta(r, m) for r in rows])
+
+
+def rom_deltas(blade_freqs: np.ndarray, deltas_pct: np.ndarray, rom_freqs_hz: np.ndarray) -> np.ndarray:
+    """ROM mistuning δ (fractions, Eq. 19) from measured blade deltas (%, Eq. 37).
+
+    Each tracked measured mode is matched to the ROM blade's free-interface mode nearest in frequency
+    (one-to-one); unmatched ROM modes stay tuned.
+
+    Parameters
+    ----------
+    blade_freqs : ndarray, shape (n_blades, k)
+        Measured frequencies of the tracked modes (Hz; NaN where a blade lacks a mode).
+    deltas_pct : ndarray, shape (n_blades, k)
+    rom_freqs_hz : ndarray, shape (m,)
+
+    Returns
+    -------
+    ndarray, shape (n_blades, m)
+    """
+    mean_f = np.nanmean(blade_freqs, axis=0)
+    cost = np.abs(rom_freqs_hz[None, :] / mean_f[:, None] - 1)
+    rows, cols = linear_sum_assignment(cost)
+    out = np.zeros((blade_freqs.shape[0], rom_freqs_hz.size))
+    out[:, cols] = np.nan_to_num(deltas_pct[:, rows]) / 100
+    return out

@@ -7,6 +7,7 @@ import pytest
 import pyuff
 
 from ema import (
+    EMAError,
     FRFSet,
     ModalModel,
     UFFError,
@@ -19,6 +20,7 @@ from ema import (
     write_frfs,
     write_modes,
 )
+from ema.uff import _even_axis
 
 EXPECTED_REFUSAL = {
     "1858.uff": "no FRF",
@@ -87,6 +89,31 @@ def test_58_round_trip_is_lossless(tmp_path, freq):
     # pyuff itself reads what we wrote
     raw = pyuff.UFF(str(path)).read_sets()
     assert all(d["func_type"] == 4 for d in raw) and len(raw) == 6
+
+
+@pytest.mark.parametrize("freq", [np.arange(1.0, 201.0) * 0.5, np.cumsum(np.full(150, np.pi / 7)) + 3.3])
+def test_58b_single_precision(tmp_path, freq):
+    """precision="single": ordinate type 5, half the bytes, values to float32 rounding, read by pyuff too."""
+    rng = np.random.default_rng(3)
+    frf = _random_set(rng, [(1, 3), (2, -3), (7, 1)], [(1, 3), (4, 2)], freq)
+    write_frfs(tmp_path / "d.uff", frf)
+    write_frfs(tmp_path / "s.uff", frf, precision="single")
+    back = read_uff(tmp_path / "s.uff")
+    assert back.outputs == frf.outputs and back.inputs == frf.inputs and back.form == frf.form
+    eps32 = np.finfo(np.float32).eps
+    assert np.max(np.abs(back.freq_hz - frf.freq_hz) / frf.freq_hz) <= eps32
+    # each of the real and imaginary parts rounds to float32 on its own
+    assert np.max(np.abs(back.H - frf.H) / np.abs(frf.H)) <= 2 * eps32
+    assert np.max(np.abs(back.H - frf.H) / np.abs(frf.H)) > 0  # it really is single precision
+    raw = pyuff.UFF(str(tmp_path / "s.uff")).read_sets()
+    assert [d["ord_data_type"] for d in raw] == [5] * 6
+    np.testing.assert_allclose(raw[0]["data"], frf.H[0, 0], rtol=2 * eps32)
+    # values per point: re, im, and the abscissa when the header cannot rebuild it (uneven axis)
+    n_values = freq.size * 6 * (2 if _even_axis(freq) else 3)
+    saved = (tmp_path / "d.uff").stat().st_size - (tmp_path / "s.uff").stat().st_size
+    assert saved == 4 * n_values
+    with pytest.raises(EMAError, match="precision"):
+        write_frfs(tmp_path / "x.uff", frf, precision="half")
 
 
 def test_ascii_58_and_modes_55(tmp_path):

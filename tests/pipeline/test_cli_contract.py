@@ -67,8 +67,16 @@ def test_every_json_output_is_one_document(uff_dir, tmp_path, capsys, monkeypatc
         ("ema", "joints"): ["ema", "joints", str(uff_dir), "--out", str(tmp_path / "j"), *ema_opts],
         ("ema", "disk"): ["ema", "disk", str(uff_dir / "one"), "--out", str(tmp_path / "d"), *ema_opts],
         ("ema", "assembly"): ["ema", "assembly", str(uff_dir / "one"), "--out", str(tmp_path / "a"), *ema_opts],
-        ("lab", "simulate"): ["lab", "simulate", *MODEL, "--blades", "2", "--out", str(tmp_path / "lab"), "--json"],
+        ("lab", "simulate"): ["lab", "simulate", *MODEL, "--blades", "4", "--out", str(tmp_path / "lab"), "--json"],
     }
+    # The identification stages run on the campaign just simulated (4 blades, joints 2 and 3 filmed), each
+    # reading the previous stage's file from the same output folder.
+    ident = [str(tmp_path / "lab"), "--out", str(tmp_path / "id"), "--quiet", "--json"]
+    runs[("identify", "patterns")] = ["identify", "patterns", *ident, "--n", "3"]
+    runs[("identify", "sensitivity")] = ["identify", "sensitivity", *ident, "--no-plot"]
+    runs[("identify", "dataset")] = ["identify", "dataset", *ident, "--step", "1.0"]
+    runs[("identify", "predict")] = ["identify", "predict", *ident]
+    runs[("identify", "validate")] = ["identify", "validate", *ident]
     assert set(runs) == _json_commands(), "a command with --json is not covered by this test"
     for key, argv in runs.items():
         assert main(argv) == 0, key

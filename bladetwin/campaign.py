@@ -1,0 +1,199 @@
+"""Reading a campaign folder: ``campaign.toml`` and the files it names (docs/campaign.md).
+
+Floor 3: this is file-system orchestration, shared by ``bladetwin identify`` and ``bladetwin run``. Every
+problem with a manifest is one line naming the file, the field and what was expected.
+"""
+
+from __future__ import annotations
+
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+
+__all__ = ["Campaign", "CampaignError", "FilmEntry", "TestEntry", "read_campaign"]
+
+TEST_TYPES = ("blade", "disk", "d1b", "assembly")
+
+
+class CampaignError(ValueError):
+    """A campaign folder or manifest that cannot be used, with a one-line message for the user."""
+
+
+@dataclass(frozen=True)
+class TestEntry:
+    """One UFF file of the campaign.
+
+    Attributes
+    ----------
+    type : {"blade", "disk", "d1b", "assembly"}
+    file : Path
+        Absolute path of the UFF file.
+    index : int or None
+        Blade (``blade`` tests) or joint (``d1b`` tests), 1-based; None for the disk and the assembly.
+    max_order : int
+        Highest model order of the pole estimator (the manifest's optional EMA hint; default 60).
+    """
+
+    __test__ = False  # not a pytest class, despite the name
+
+    type: str
+    file: Path
+    index: int | None
+    max_order: int = 60
+
+
+@dataclass(frozen=True)
+class FilmEntry:
+    """One film scan: joint (1-based), flank ("L"/"R"), absolute file path, and its metadata mapping."""
+
+    joint: int
+    flank: str
+    file: Path
+    meta: dict = field(default_factory=dict)
+
+    @property
+    def contact_level(self) -> float | None:
+        """Gray level of the contact threshold, if the manifest gives one (contact where gray < level)."""
+        v = self.meta.get("contact_level")
+        return None if v is None else float(v)
+
+
+@dataclass(frozen=True)
+class Campaign:
+    """A campaign's manifest, checked, with absolute file paths.
+
+    Attributes
+    ----------
+    root : Path
+    name, kind : str
+        ``kind`` is "virtual" (made by ``bladetwin lab simulate``, has ``truth/``) or "lab".
+    n_blades : int
+    grid : (int, int)
+        Contact grid per flank (rows, cols).
+    known_joints : tuple of int
+        The filmed joints (1-based).
+    model : dict
+        The ``[model]`` table (family, level, n_blades, grid).
+    tests : tuple of TestEntry
+    films : tuple of FilmEntry
+    """
+
+    root: Path
+    name: str
+    kind: str
+    n_blades: int
+    grid: tuple[int, int]
+    known_joints: tuple[int, ...]
+    model: dict
+    tests: tuple[TestEntry, ...]
+    films: tuple[FilmEntry, ...]
+
+    def of_type(self, kind: str) -> list[TestEntry]:
+        """The tests of one type, in blade/joint order."""
+        return sorted((t for t in self.tests if t.type == kind), key=lambda t: t.index or 0)
+
+    def film(self, joint: int, flank: str) -> FilmEntry:
+        for f in self.films:
+            if f.joint == joint and f.flank == flank:
+                return f
+        raise CampaignError(f"{self.root / 'campaign.toml'}: no film for joint {joint} flank {flank}")
+
+    @property
+    def truth_dir(self) -> Path | None:
+        """``truth/`` of a virtual campaign, or None."""
+        d = self.root / "truth"
+        return d if d.is_dir() else None
+
+
+def _need(table: dict, key: str, where: str, kind: type | tuple[type, ...]):
+    if key not in table:
+        raise CampaignError(f"{where}: missing field {key!r}")
+    value = table[key]
+    if not isinstance(value, kind) or isinstance(value, bool):
+        raise CampaignError(f"{where}: field {key!r} = {value!r} has the wrong type")
+    return value
+
+
+def _grid(value, where: str) -> tuple[int, int]:
+    if (not isinstance(value, list) or len(value) != 2
+            or not all(isinstance(v, int) and not isinstance(v, bool) and v >= 2 for v in value)):
+        raise CampaignError(f"{where}: grid = {value!r}, expected [rows, cols] with integers ≥ 2")
+    return int(value[0]), int(value[1])
+
+
+def _file(root: Path, rel, where: str) -> Path:
+    if not isinstance(rel, str) or not rel:
+        raise CampaignError(f"{where}: file = {rel!r}, expected a path relative to the campaign folder")
+    path = (root / rel).resolve()
+    if not path.is_file():
+        raise CampaignError(f"{where}: file {rel!r} not found in {root}")
+    return path
+
+
+def read_campaign(folder: str | Path) -> Campaign:
+    """Read and check ``folder/campaign.toml`` (docs/campaign.md).
+
+    Raises
+    ------
+    CampaignError
+        No folder or manifest, TOML syntax, a missing or mistyped field, an unknown test type, a blade or
+        joint index out of range, a file that does not exist, a known joint without both films.
+    """
+    root = Path(folder)
+    if not root.is_dir():
+        raise CampaignError(f"{root}: not a campaign folder (expected a folder with campaign.toml)")
+    path = root / "campaign.toml"
+    if not path.is_file():
+        raise CampaignError(f"{root}: no campaign.toml (docs/campaign.md describes the manifest)")
+    try:
+        doc = tomllib.loads(path.read_text(encoding="utf-8"))
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
+        raise CampaignError(f"{path}: not valid TOML ({exc})") from None
+    head = _need(doc, "campaign", str(path), dict)
+    where = f"{path} [campaign]"
+    n_blades = _need(head, "n_blades", where, int)
+    if n_blades < 2:
+        raise CampaignError(f"{where}: n_blades = {n_blades}, expected ≥ 2")
+    grid = _grid(_need(head, "grid", where, list), where)
+    known = _need(head, "known_joints", where, list)
+    if not all(isinstance(k, int) and not isinstance(k, bool) and 1 <= k <= n_blades for k in known):
+        raise CampaignError(f"{where}: known_joints = {known!r}, expected joints in 1..{n_blades}")
+    model = doc.get("model", {})
+    if not isinstance(model, dict):
+        raise CampaignError(f"{path}: [model] must be a table")
+    tests = []
+    for k, t in enumerate(_need(doc, "tests", str(path), list)):
+        w = f"{path} tests[{k}]"
+        if not isinstance(t, dict):
+            raise CampaignError(f"{w}: expected a table")
+        kind = _need(t, "type", w, str)
+        if kind not in TEST_TYPES:
+            raise CampaignError(f"{w}: type = {kind!r}, expected one of {', '.join(TEST_TYPES)}")
+        index = None
+        if kind in ("blade", "d1b"):
+            key = "blade" if kind == "blade" else "joint"
+            index = _need(t, key, w, int)
+            if not 1 <= index <= n_blades:
+                raise CampaignError(f"{w}: {key} = {index}, expected 1..{n_blades}")
+        order = t.get("max_order", 60)
+        if not isinstance(order, int) or isinstance(order, bool) or order < 2:
+            raise CampaignError(f"{w}: max_order = {order!r}, expected an integer ≥ 2")
+        tests.append(TestEntry(kind, _file(root, t.get("file"), w), index, order))
+    films = []
+    for k, f in enumerate(doc.get("films", [])):
+        w = f"{path} films[{k}]"
+        if not isinstance(f, dict):
+            raise CampaignError(f"{w}: expected a table")
+        joint = _need(f, "joint", w, int)
+        flank = _need(f, "flank", w, str)
+        if not 1 <= joint <= n_blades or flank not in ("L", "R"):
+            raise CampaignError(f"{w}: joint {joint!r} flank {flank!r}, expected 1..{n_blades} and L or R")
+        meta = {key: v for key, v in f.items() if key not in ("joint", "flank", "file")}
+        films.append(FilmEntry(joint, flank, _file(root, f.get("file"), w), meta))
+    have = {(f.joint, f.flank) for f in films}
+    for j in known:
+        for flank in ("L", "R"):
+            if (j, flank) not in have:
+                raise CampaignError(f"{path}: known joint {j} has no film for flank {flank}")
+    return Campaign(root.resolve(), str(head.get("name", root.name)), str(head.get("kind", "lab")), n_blades, grid,
+                    tuple(int(k) for k in known), dict(model), tuple(tests), tuple(films))

@@ -1,0 +1,239 @@
+"""The identification pipeline's steps on a campaign folder (floor 3: files, caching, EMA, ROM, identify).
+
+Each step is a plain function on a :class:`bladetwin.campaign.Campaign`; ``bladetwin identify …`` runs them
+one at a time and ``bladetwin run`` chains them (design §2).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.optimize import linear_sum_assignment
+
+import ema
+from identify.dataset import Dataset
+from identify.film import FilmGeometry, FilmMap, contact_pattern, read_film
+from identify.knn import TwoStepKNN, TwoStepMatch, query_matrix
+from identify.sampler import SyntheticPatterns, sample_patterns
+from identify.tracking import ModeTracker
+from rom import cache
+from rom.academic import AcademicParams, BladedDisk, build_bladed_disk
+from rom.contact import ContactPattern
+from rom.craig_bampton import CraigBamptonModel
+from rom.mistuning import rom_deltas
+from rom.rubin import RubinModel
+
+from .campaign import Campaign, CampaignError
+
+__all__ = [
+    "Models", "BladeTests", "Prediction", "reduced_models", "read_films", "film_patterns", "synthesize",
+    "blade_tests", "d1b_tests", "match_to_reference", "known_bias", "predict_joints", "mean_known_pattern",
+]
+
+#: Window of the frequency matching between measured and tracked modes (relative).
+MATCH_WINDOW = 0.05
+
+
+@dataclass(frozen=True, eq=False)
+class Models:
+    """The campaign's FE twin and its reduced models (CB disk on slot 1, Rubin blade)."""
+
+    bd: BladedDisk
+    disk: CraigBamptonModel
+    blade: RubinModel
+
+
+def model_params(campaign: Campaign) -> AcademicParams:
+    """The academic twin named by the manifest's ``[model]`` table."""
+    m = campaign.model
+    family = m.get("family", "academic")
+    if family != "academic":
+        raise CampaignError(f"{campaign.root / 'campaign.toml'} [model]: family = {family!r}; only 'academic' "
+                            "models can be built here (FE imports come with issue 13)")
+    return AcademicParams(n_blades=int(m.get("n_blades", campaign.n_blades)), grid=tuple(m.get("grid", campaign.grid)),
+                          level=str(m.get("level", "default")))
+
+
+def reduced_models(campaign: Campaign, cache_dir=None) -> Models:
+    """FE twin and reduced models of the campaign's model, through the on-disk cache (``rom.cache``)."""
+    bd = build_bladed_disk(model_params(campaign))
+    return Models(bd, cache.cached_reduce_disk(bd, (1,), cache_dir=cache_dir),
+                  cache.cached_reduce_blade(bd, cache_dir=cache_dir))
+
+
+def read_films(campaign: Campaign, joints=None) -> dict[int, tuple[FilmMap, FilmMap]]:
+    """Film maps (L, R) of the known joints (or ``joints``), with each film's own geometry and contact level."""
+    out = {}
+    for j in campaign.known_joints if joints is None else joints:
+        maps = []
+        for flank in ("L", "R"):
+            f = campaign.film(j, flank)
+            geometry = FilmGeometry.from_mapping(f.meta) if "origin" in f.meta else None
+            maps.append(read_film(f.file, campaign.grid, geometry, threshold=f.contact_level,
+                                  white=f.meta.get("white")))
+        out[int(j)] = (maps[0], maps[1])
+    return out
+
+
+def film_patterns(films: dict[int, tuple[FilmMap, FilmMap]]) -> dict[int, ContactPattern]:
+    """The contact pattern of each filmed joint."""
+    return {j: contact_pattern(a, b) for j, (a, b) in films.items()}
+
+
+def synthesize(films: dict[int, tuple[FilmMap, FilmMap]], *, n_patterns: int = 10, scale: float = 1.0,
+               seed: int = 0) -> SyntheticPatterns:
+    """Synthetic patterns SP-1..n per flank from the known films (paper §3.1, §6.1).
+
+    The maps are thresholded at the known films' mean contact level per side (each film's own level is how
+    the lab read it; a histogram rule such as Otsu misreads films whose threshold comes from calibration).
+    """
+    L = [a for a, _ in films.values()]
+    R = [b for _, b in films.values()]
+    threshold = (float(np.mean([m.level for m in L])), float(np.mean([m.level for m in R])))
+    return sample_patterns(L, R, n_patterns=n_patterns, scale=scale, threshold=threshold, random_state=seed)
+
+
+@dataclass(frozen=True, eq=False)
+class BladeTests:
+    """EMA of the free blades: the tracked frequencies (Hz) and deltas (%, Eq. 37), shape (n_blades, k)."""
+
+    models: dict
+    frequencies_hz: np.ndarray
+    deltas_pct: np.ndarray
+
+
+def _ema(test) -> ema.ModalModel:
+    return ema.fit(ema.read_uff(test.file), max_order=test.max_order).model
+
+
+def blade_tests(campaign: Campaign, say: Callable[[str], None] = lambda m: None) -> BladeTests:
+    """Automatic EMA of every blade test, then the blade deltas (Eq. 37, modes tracked by MAC)."""
+    tests = campaign.of_type("blade")
+    if len(tests) != campaign.n_blades:
+        raise CampaignError(f"{campaign.root / 'campaign.toml'}: {len(tests)} blade tests for {campaign.n_blades} "
+                            "blades; the deltas need every blade")
+    models = {}
+    for t in tests:
+        say(f"EMA blade {t.index}")
+        models[f"blade_{t.index:02d}"] = _ema(t)
+    return BladeTests(models, ema.campaign.frequency_table(models).to_numpy(), ema.blade_deltas(models).to_numpy())
+
+
+def d1b_tests(campaign: Campaign, say: Callable[[str], None] = lambda m: None) -> dict[int, ema.ModalModel]:
+    """Automatic EMA of every disk–one-blade test, by joint."""
+    out = {}
+    for t in campaign.of_type("d1b"):
+        say(f"EMA disk-one-blade {t.index}")
+        out[int(t.index)] = _ema(t)
+    return out
+
+
+def match_to_reference(
+    frequencies_hz: np.ndarray, reference_hz: np.ndarray, window: float = MATCH_WINDOW
+) -> np.ndarray:
+    """Measured frequencies matched one-to-one to tracked modes (Hungarian on relative distance).
+
+    Parameters
+    ----------
+    frequencies_hz : ndarray, shape (n_measured,)
+    reference_hz : ndarray, shape (n_modes,)
+        The tracked modes' frequencies expected for this joint (e.g. the dataset's mean over the step-1 subset).
+    window : float
+        Largest relative distance of a match.
+
+    Returns
+    -------
+    ndarray, shape (n_modes,)
+        The measured frequency matched to each tracked mode; NaN where none lies within ``window``.
+    """
+    f = np.asarray(frequencies_hz, float)
+    ref = np.asarray(reference_hz, float)
+    out = np.full(ref.size, np.nan)
+    if f.size == 0:
+        return out
+    rel = np.abs(f[None, :] / ref[:, None] - 1)
+    rows, cols = linear_sum_assignment(np.where(rel <= window, rel, 1e6))
+    ok = rel[rows, cols] <= window
+    out[rows[ok]] = f[cols[ok]]
+    return out
+
+
+def subset_reference(dataset: Dataset, deltas: np.ndarray) -> np.ndarray:
+    """Mean tracked frequencies (Hz) of the dataset's δ row nearest to each joint's δ, shape (n_joints, n_modes)."""
+    rows = np.unique(dataset.deltas, axis=0)
+    out = np.empty((len(deltas), dataset.frequencies_hz.shape[1]))
+    for k, d in enumerate(np.asarray(deltas, float)):
+        near = rows[np.argmin(np.linalg.norm(rows - d, axis=1))]
+        out[k] = dataset.frequencies_hz[np.all(dataset.deltas == near, axis=1)].mean(axis=0)
+    return out
+
+
+def known_bias(measured_hz: dict[int, np.ndarray], rom_hz: dict[int, np.ndarray]) -> np.ndarray:
+    """Per-mode relative bias of the ROM against the measurement on the filmed joints (design §2, step 4).
+
+    Parameters
+    ----------
+    measured_hz, rom_hz : dict joint → ndarray, shape (n_modes,)
+        Tracked frequencies of each known joint: measured (NaN where unmatched) and the ROM's with the
+        joint's film pattern and measured δ.
+
+    Returns
+    -------
+    ndarray, shape (n_modes,)
+        Median over the known joints of f_measured / f_ROM − 1 (0 where no joint has the mode).
+    """
+    ratios = np.array([measured_hz[j] / rom_hz[j] - 1 for j in measured_hz])
+    with np.errstate(all="ignore"):
+        b = np.nanmedian(np.where(np.isfinite(ratios), ratios, np.nan), axis=0) if ratios.size else np.zeros(0)
+    return np.nan_to_num(b)
+
+
+@dataclass(frozen=True, eq=False)
+class Prediction:
+    """The k-NN's answer for every joint.
+
+    Attributes
+    ----------
+    joints : ndarray of int, shape (n_joints,)
+        1-based joints.
+    deltas : ndarray, shape (n_joints, n_delta_modes)
+        Query δ (relative).
+    features_hz : ndarray, shape (n_joints, n_features)
+        Query frequencies (Hz), bias-corrected.
+    match : identify.knn.TwoStepMatch
+    patterns : list of ContactPattern
+        The best candidate of each joint.
+    """
+
+    joints: np.ndarray
+    deltas: np.ndarray
+    features_hz: np.ndarray
+    match: TwoStepMatch
+    patterns: list
+
+
+def predict_joints(dataset: Dataset, joints, deltas, features_hz, *, n_neighbors: int = 1) -> Prediction:
+    """Two-step weighted k-NN (paper §6.4) for each joint's δ (relative) and feature frequencies (Hz)."""
+    knn = TwoStepKNN.from_dataset(dataset, n_neighbors=n_neighbors)
+    X = query_matrix(np.asarray(deltas, float), np.asarray(features_hz, float))
+    m = knn.match(X)
+    pats = [ContactPattern(dataset.patterns_L[int(lab[0, 0])], dataset.patterns_R[int(lab[0, 1])]) for lab in m.label]
+    return Prediction(np.asarray(joints), np.asarray(deltas, float), np.asarray(features_hz, float), m, pats)
+
+
+def mean_known_pattern(known: dict[int, ContactPattern]) -> ContactPattern:
+    """Baseline: every node in contact where most filmed joints are (majority vote per flank node)."""
+    L = np.mean([p.L for p in known.values()], axis=0) >= 0.5
+    R = np.mean([p.R for p in known.values()], axis=0) >= 0.5
+    return ContactPattern(L, R)
+
+
+def query_deltas(blades: BladeTests, models: Models, n_delta_modes: int) -> np.ndarray:
+    """Each blade's δ of the ROM's first ``n_delta_modes`` modes (relative) from the measured deltas."""
+    return rom_deltas(blades.frequencies_hz, blades.deltas_pct, models.blade.frequencies_hz)[:, :n_delta_modes]
+
+
+def tracker(models: Models, dataset: Dataset) -> ModeTracker:
+    return ModeTracker.from_dataset(models.disk, models.blade, dataset)

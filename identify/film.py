@@ -1,0 +1,587 @@
+"""Pressure-film images → contact maps on a joint's grid (paper §3.1, Eqs. 23–24; §5, Fig. 11).
+
+A film scan is read as a grayscale float matrix (Eq. 23) and sampled at the flank's grid nodes. The result
+keeps two views of the film at the nodes: a normalised **darkness** map (what the PCA sampler works on,
+Eq. 24 vectorises it) and a boolean **contact** grid (a threshold on image intensity, Fig. 11).
+
+Orientation (the convention of :mod:`lab.films` and docs/campaign.md, "Film images")
+--------------------------------------------------------------------------------------
+* image **rows** run along grid rows (axial), image **columns** along grid columns (radial, outwards): the
+  slot bottom is the **left** edge of the imprint;
+* grid node (0, 0) sits at pixel ``geometry.origin`` = (row, col), and node (i, j) at
+  ``origin + (i · spacing[0], j · spacing[1]) / pixel_size``;
+* pixel (r, c) covers [r − ½, r + ½] × [c − ½, c + ½] (pixel-centre convention), so a node's gray value is the
+  bilinear interpolation of the four pixel centres around it;
+* **dark = high pressure**: a node is in contact where its gray value is **below** the threshold.
+
+Without geometry (a lab film that comes with no metadata) the reader places the grid itself: the imprint
+(``fallback="imprint"``: the bounding box of the exposed pixels) or the whole image (``fallback="image"``:
+a scan already cropped to the flank, as the paper's "standardized height and width", Eq. 23) is taken as
+the nodes' cells, the node box widened by half a spacing on every side, so every node is a cell centre.
+
+Tone
+----
+``gray = clip((white − value) / white, 0, 1)``: 0 is unexposed film, 1 is black (gray value 0). ``white`` is
+the unexposed film's gray value: given (``FilmMeta.white``) or estimated as the median of the brightest 5 %
+of the pixels. The scale is fixed by the film and scanner, not stretched per image, so that maps of different
+joints are comparable for PCA.
+
+Threshold
+---------
+The user's value (e.g. ``FilmMeta.contact_level``, in the image's gray units), or else Otsu's threshold
+(:func:`otsu_threshold`) on the pixels of the nodes' cells. The value used and its source are reported.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import warnings
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from PIL import Image, UnidentifiedImageError
+from scipy.ndimage import map_coordinates
+
+from rom.contact import ContactPattern
+
+from .errors import IdentifyError
+
+__all__ = [
+    "FilmGeometry",
+    "FilmMap",
+    "MIN_PIXELS_PER_SPACING",
+    "contact_pattern",
+    "find_imprint",
+    "load_image",
+    "map_film",
+    "otsu_threshold",
+    "read_film",
+    "unexposed_level",
+]
+
+#: A grid spacing must span at least this many pixels: below it two neighbouring nodes read the same pixels
+#: (Nyquist: an alternating contact pattern needs two pixels per node).
+MIN_PIXELS_PER_SPACING = 2.0
+
+#: A pixel is exposed (part of the imprint, for the fallback placement) where it is darker than the unexposed
+#: level by more than this fraction of it: ~7 gray levels of 8-bit film, far above scanner grain (σ ≈ 1–2).
+IMPRINT_DEPTH = 0.03
+
+#: A row or column belongs to the imprint's bounding box if at least this fraction of its pixels (and at
+#: least 2) are exposed; isolated dark specks (dust, grain) do not stretch the box.
+IMPRINT_MIN_SHARE = 0.02
+
+#: Share of the brightest pixels whose median estimates the unexposed film level.
+WHITE_SHARE = 0.05
+
+_FALLBACKS = ("imprint", "image")
+
+
+def _pair(name: str, value, positive: bool) -> tuple[float, float]:
+    try:
+        a = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise IdentifyError(f"film geometry: {name} must be two numbers, got {value!r}") from None
+    if a.shape != (2,) or not np.isfinite(a).all() or (positive and not (a > 0).all()):
+        what = "two positive finite numbers" if positive else "two finite numbers"
+        raise IdentifyError(f"film geometry: {name} must be {what}, got {value!r}")
+    return float(a[0]), float(a[1])
+
+
+def _grid(grid, where: str = "grid") -> tuple[int, int]:
+    if isinstance(grid, (str, bytes)):
+        raise IdentifyError(f"{where} must be (rows, cols), two positive integers, got {grid!r}")
+    try:
+        g = tuple(int(x) for x in grid)
+        ok = len(g) == 2 and all(int(x) == x for x in grid) and min(g) >= 1
+    except (TypeError, ValueError):
+        ok = False
+    if not ok:
+        raise IdentifyError(f"{where} must be (rows, cols), two positive integers, got {grid!r}")
+    return g
+
+
+@dataclass(frozen=True)
+class FilmGeometry:
+    """Where the grid nodes lie on a film image.
+
+    Attributes
+    ----------
+    origin : (float, float)
+        Pixel (row, col) of grid node (0, 0), pixel-centre convention (may be fractional).
+    spacing : (float, float)
+        Grid spacing along rows (axial, between grid rows) and columns (radial, between grid columns), in the
+        unit of ``pixel_size`` (m for :class:`lab.films.FilmMeta`; pixels when ``pixel_size`` is 1).
+    pixel_size : float
+        Size of a square pixel, same unit as ``spacing``. Default 1 (spacing in pixels).
+    grid : (int, int) or None
+        The grid shape the geometry was made for, if known; :func:`map_film` refuses another grid.
+    """
+
+    origin: tuple[float, float]
+    spacing: tuple[float, float]
+    pixel_size: float = 1.0
+    grid: tuple[int, int] | None = None
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "origin", _pair("origin", self.origin, positive=False))
+        object.__setattr__(self, "spacing", _pair("spacing", self.spacing, positive=True))
+        ps = self.pixel_size
+        if isinstance(ps, bool) or not isinstance(ps, (int, float, np.number)) or not (math.isfinite(ps) and ps > 0):
+            raise IdentifyError(f"film geometry: pixel_size must be a positive finite number, got {ps!r}")
+        object.__setattr__(self, "pixel_size", float(ps))
+        if self.grid is not None:
+            object.__setattr__(self, "grid", _grid(self.grid, "film geometry: grid"))
+
+    @classmethod
+    def from_mapping(cls, meta) -> FilmGeometry:
+        """Geometry from film metadata: a mapping (a manifest's ``[[films]]`` entry, ``FilmMeta.to_dict()``) or
+        an object with the same attributes (``lab.films.FilmMeta``).
+
+        Reads ``origin``, ``spacing``, ``pixel_size`` and, if present, ``grid``; other keys are ignored.
+        """
+        get = meta.get if isinstance(meta, Mapping) else (lambda k, d=None: getattr(meta, k, d))
+        missing = [k for k in ("origin", "spacing", "pixel_size") if get(k) is None]
+        if missing:
+            raise IdentifyError(f"film metadata lacks {', '.join(missing)} (needs origin, spacing, pixel_size)")
+        return cls(tuple(get("origin")), tuple(get("spacing")), get("pixel_size"), get("grid"))
+
+    def pixels_per_spacing(self) -> tuple[float, float]:
+        """Grid spacing in pixels along rows and columns."""
+        return self.spacing[0] / self.pixel_size, self.spacing[1] / self.pixel_size
+
+    def node_pixels(self, grid: tuple[int, int]) -> tuple[np.ndarray, np.ndarray]:
+        """Fractional pixel (row, col) of every node, each of shape ``grid``: origin + (i, j) · spacing / pixel_size."""
+        rows, cols = _grid(grid)
+        sr, sc = self.pixels_per_spacing()
+        i, j = np.meshgrid(np.arange(rows), np.arange(cols), indexing="ij")
+        return self.origin[0] + i * sr, self.origin[1] + j * sc
+
+
+@dataclass(frozen=True, eq=False)
+class FilmMap:
+    """A film read onto a flank's grid.
+
+    Attributes
+    ----------
+    gray : ndarray of float64, shape (rows, cols)
+        Darkness at the nodes, clip((white − value) / white, 0, 1): 0 unexposed, 1 black (Eq. 23 on the grid).
+    contact : ndarray of bool, shape (rows, cols)
+        ``value < threshold`` (dark = high pressure).
+    values : ndarray of float64, shape (rows, cols)
+        Gray value at each node in the image's own units (bilinear between pixel centres).
+    threshold : float
+        Contact threshold in the image's gray units.
+    threshold_source : {"given", "otsu"}
+    level : float
+        The threshold on the ``gray`` scale, (white − threshold) / white: ``contact == (gray > level)``
+        wherever ``level`` lies in (0, 1) (the PCA sampler thresholds synthetic maps on this scale).
+    white : float
+        Unexposed film gray value used for ``gray``.
+    geometry : FilmGeometry
+        Node placement used (given, or found by the fallback, then in pixels).
+    geometry_source : {"given", "imprint", "image"}
+    image_shape : (int, int)
+        (height, width) of the image in pixels.
+    path : str or None
+        The file read, if any.
+    """
+
+    gray: np.ndarray
+    contact: np.ndarray
+    values: np.ndarray
+    threshold: float
+    threshold_source: str
+    level: float
+    white: float
+    geometry: FilmGeometry
+    geometry_source: str
+    image_shape: tuple[int, int]
+    path: str | None = None
+
+    @property
+    def grid(self) -> tuple[int, int]:
+        """Grid shape (rows, cols)."""
+        return self.gray.shape
+
+    @property
+    def contact_fraction(self) -> float:
+        """Share of the grid nodes in contact."""
+        return float(self.contact.mean())
+
+    @property
+    def name(self) -> str:
+        """The file name for messages (``<array>`` for an image passed as an array)."""
+        return self.path if self.path is not None else "<array>"
+
+
+def _gray_array(im: Image.Image) -> np.ndarray:
+    """Pixel values of a Pillow image as float64 (height, width), in the image's own gray units.
+
+    8- and 16-bit grayscale, 32-bit integer and float images keep their values; colour and palette images are
+    converted to luma (ITU-R 601, Pillow's "L"); an alpha channel is ignored.
+    """
+    if im.mode in ("L", "I", "F") or im.mode.startswith("I;16"):
+        a = np.asarray(im)
+    elif im.mode in ("LA", "La"):
+        a = np.asarray(im.getchannel(0))
+    else:
+        a = np.asarray(im.convert("L"))
+    return a.astype(np.float64)
+
+
+def load_image(path: str | os.PathLike) -> np.ndarray:
+    """Read a film scan (PNG or TIFF; any raster format Pillow reads) as a grayscale float matrix (Eq. 23).
+
+    Parameters
+    ----------
+    path : str or path-like
+
+    Returns
+    -------
+    ndarray of float64, shape (height, width)
+        Gray values in the image's own units (0–255 for 8-bit, 0–65535 for 16-bit scans); colour scans are
+        converted to luma. A multi-page TIFF gives its first page (with a warning).
+
+    Raises
+    ------
+    IdentifyError
+        If the file is missing, not an image, truncated or corrupt, or not a 2-D image of at least 2×2 pixels.
+    """
+    p = Path(path)
+    try:
+        with Image.open(p) as im:
+            n_frames = getattr(im, "n_frames", 1)
+            if n_frames > 1:
+                warnings.warn(f"film {p}: {n_frames} pages, reading the first", stacklevel=2)
+            im.load()  # decode now: a truncated file fails here, not later
+            a = _gray_array(im)
+    except FileNotFoundError:
+        raise IdentifyError(f"film {p}: no such file") from None
+    except IsADirectoryError:
+        raise IdentifyError(f"film {p}: is a folder, expected an image file") from None
+    except UnidentifiedImageError:
+        raise IdentifyError(f"film {p}: not an image (expected a PNG or TIFF scan)") from None
+    except Image.DecompressionBombError as e:  # Pillow's guard against huge images, not an OSError
+        raise IdentifyError(f"film {p}: image too large to read safely ({e})") from None
+    except (OSError, SyntaxError, ValueError, EOFError) as e:  # Pillow's ways of saying "corrupt or truncated"
+        raise IdentifyError(f"film {p}: unreadable or corrupt image ({e})") from None
+    if a.ndim != 2 or min(a.shape) < 2:
+        raise IdentifyError(f"film {p}: expected a 2-D grayscale image of at least 2×2 pixels, got shape {a.shape}")
+    if not np.isfinite(a).all():
+        raise IdentifyError(f"film {p}: image holds non-finite values (NaN or inf)")
+    return a
+
+
+def otsu_threshold(values: np.ndarray, bins: int = 256) -> float:
+    """Otsu's threshold: the split of a histogram that maximises the between-class variance.
+
+    Parameters
+    ----------
+    values : array_like of float
+        Gray values (any shape).
+    bins : int
+        Histogram bins over [min, max]. Default 256 (one per level of 8-bit data spanning the full range).
+
+    Returns
+    -------
+    float
+        t such that the classes are ``values < t`` and ``values >= t``: a bin edge. Where several splits tie
+        (empty bins between the modes), the middle of the tied run, i.e. the middle of the gap.
+
+    Raises
+    ------
+    IdentifyError
+        If there are no finite values or they are all equal (nothing to split).
+
+    Notes
+    -----
+    For the split after bin k, with class weights ω₀, ω₁ and means μ₀, μ₁, the between-class variance is
+    σ_b² = ω₀ ω₁ (μ₀ − μ₁)² (Otsu, IEEE Trans. SMC 9(1), 1979); the class means use the bin centres.
+    """
+    v = np.asarray(values, dtype=np.float64).ravel()
+    v = v[np.isfinite(v)]
+    if v.size == 0 or v.min() == v.max():
+        raise IdentifyError("automatic threshold: the gray values are all equal, there is nothing to split")
+    counts, edges = np.histogram(v, bins=bins)
+    centres = 0.5 * (edges[:-1] + edges[1:])
+    w0 = np.cumsum(counts)[:-1].astype(np.float64)  # weight of class 0 = bins 0..k, for k = 0..bins−2
+    s0 = np.cumsum(counts * centres)[:-1]
+    n, s = float(counts.sum()), float((counts * centres).sum())
+    w1 = n - w0
+    with np.errstate(divide="ignore", invalid="ignore"):
+        sb = np.where((w0 > 0) & (w1 > 0), w0 * w1 * (s0 / w0 - (s - s0) / w1) ** 2, -np.inf)
+    best = np.flatnonzero(sb >= sb.max() * (1 - 1e-12))
+    run_end = best[0]
+    while run_end + 1 in best:  # first contiguous run of tied splits
+        run_end += 1
+    k = 0.5 * (best[0] + run_end)
+    # Threshold = upper edge of bin k (class 0 = values below it); fractional k lands mid-gap.
+    return float(np.interp(k + 1, np.arange(edges.size), edges))
+
+
+def unexposed_level(image: np.ndarray) -> float:
+    """Estimate the unexposed film's gray value: the median of the brightest :data:`WHITE_SHARE` of the pixels.
+
+    The margin of unexposed film around an imprint (and unexposed islands inside it) is the image's brightest
+    part; a median over its top rather than the maximum keeps grain and dust out.
+    """
+    a = np.asarray(image, dtype=np.float64).ravel()
+    k = max(1, int(math.ceil(WHITE_SHARE * a.size)))
+    return float(np.median(np.partition(a, a.size - k)[a.size - k:]))
+
+
+def find_imprint(image: np.ndarray, white: float | None = None) -> tuple[float, float, float, float]:
+    """Bounding box of a film's imprint (its exposed pixels), as pixel edges.
+
+    Parameters
+    ----------
+    image : ndarray, shape (height, width)
+        Gray values; dark = exposed.
+    white : float, optional
+        Unexposed film level; estimated with :func:`unexposed_level` if not given.
+
+    Returns
+    -------
+    top, bottom, left, right : float
+        Box edges in pixel coordinates (pixel-centre convention): the box spans rows r0..r1 and columns c0..c1
+        of exposed pixels, so ``top = r0 − ½``, ``bottom = r1 + ½`` and likewise for columns.
+
+    Raises
+    ------
+    IdentifyError
+        If no row or column holds exposed pixels (a blank film).
+
+    Notes
+    -----
+    A pixel is exposed where it is darker than ``white · (1 −`` :data:`IMPRINT_DEPTH` ``)``; a row (column)
+    belongs to the box if at least :data:`IMPRINT_MIN_SHARE` of its pixels (and at least 2) are exposed.
+    """
+    a = np.asarray(image, dtype=np.float64)
+    w = unexposed_level(a) if white is None else float(white)
+    exposed = a < w * (1.0 - IMPRINT_DEPTH)
+    share_r, share_c = exposed.mean(axis=1), exposed.mean(axis=0)  # profiles: exposed share per row, per column
+    rows = np.flatnonzero(exposed.sum(axis=1) >= max(2, IMPRINT_MIN_SHARE * a.shape[1]))
+    cols = np.flatnonzero(exposed.sum(axis=0) >= max(2, IMPRINT_MIN_SHARE * a.shape[0]))
+    if rows.size == 0 or cols.size == 0:
+        raise IdentifyError(f"no imprint found: no pixel is darker than {w * (1.0 - IMPRINT_DEPTH):.6g} "
+                            f"({IMPRINT_DEPTH:.0%} below the unexposed level {w:.6g})")
+    top, bottom = _edges(share_r, rows[0], rows[-1], cols[-1] - cols[0] + 1)
+    left, right = _edges(share_c, cols[0], cols[-1], rows[-1] - rows[0] + 1)
+    return top, bottom, left, right
+
+
+def _edges(share: np.ndarray, first: int, last: int, across: int) -> tuple[float, float]:
+    """Sub-pixel edges of an imprint along one axis, from its exposed-share profile.
+
+    A straight edge that is rotated by θ (or blurred) makes the profile ramp up over ~across·tan θ pixels (plus
+    the blur), symmetrically about the true edge, so a box from the first and last exposed pixels is too big
+    by about that much. The edge is put where the profile crosses half its level just inside the ramp (the
+    largest share within a ramp's width, 1° + 3 pixels, of the first exposed pixel), interpolated linearly.
+    """
+    ramp = math.ceil(across * math.tan(math.radians(1.0))) + 3
+
+    def crossing(profile: np.ndarray, start: int) -> float:
+        stop = min(start + 2 * ramp, profile.size)
+        level = 0.5 * profile[start:stop].max()
+        k = start + int(np.argmax(profile[start:stop] >= level))  # first pixel at or above half the level
+        if k == 0 or profile[k - 1] >= level:
+            return k - 0.5
+        # Linear between the pixel centres k − 1 (below the level) and k: a sharp edge (share 0, then full)
+        # lands on the pixel border k − ½, a ramp on its middle.
+        frac = (level - profile[k - 1]) / (profile[k] - profile[k - 1])
+        return k - 1 + frac
+
+    lo = crossing(share, first)
+    hi = share.size - 1 - crossing(share[::-1], share.size - 1 - last)
+    return lo, hi
+
+
+def _box_geometry(box: tuple[float, float, float, float], grid: tuple[int, int]) -> FilmGeometry:
+    """Geometry that makes ``box`` (top, bottom, left, right pixel edges) the nodes' cells: node (i, j) at the
+    centre of cell (i, j) of a rows × cols division of the box."""
+    top, bottom, left, right = box
+    rows, cols = grid
+    sr, sc = (bottom - top) / rows, (right - left) / cols
+    return FilmGeometry(origin=(top + 0.5 * sr, left + 0.5 * sc), spacing=(sr, sc), pixel_size=1.0, grid=grid)
+
+
+def _cells(image: np.ndarray, geometry: FilmGeometry, grid: tuple[int, int]) -> np.ndarray:
+    """Pixels of the nodes' cells (node box widened by half a spacing), ignoring rotation: the Otsu sample."""
+    rows, cols = grid
+    sr, sc = geometry.pixels_per_spacing()
+    r0, c0 = geometry.origin[0] - 0.5 * sr, geometry.origin[1] - 0.5 * sc
+    r1, c1 = r0 + rows * sr, c0 + cols * sc
+    h, w = image.shape
+    ra, rb = max(0, math.ceil(r0)), min(h, math.floor(r1) + 1)
+    ca, cb = max(0, math.ceil(c0)), min(w, math.floor(c1) + 1)
+    return image[ra:rb, ca:cb]
+
+
+def map_film(
+    image: np.ndarray,
+    grid: tuple[int, int],
+    geometry: FilmGeometry | None = None,
+    *,
+    threshold: float | None = None,
+    white: float | None = None,
+    fallback: str = "imprint",
+    path: str | os.PathLike | None = None,
+) -> FilmMap:
+    """Sample a film image onto a flank's contact grid.
+
+    Parameters
+    ----------
+    image : array_like of float, shape (height, width)
+        Gray values (:func:`load_image`), oriented as described in the module docstring.
+    grid : (int, int)
+        Grid shape (rows, cols), e.g. (7, 31).
+    geometry : FilmGeometry, optional
+        Node placement (:meth:`FilmGeometry.from_mapping` on the film's metadata). Without it the grid is
+        placed by ``fallback``.
+    threshold : float, optional
+        Contact threshold in the image's gray units (``FilmMeta.contact_level``): contact where the node's gray
+        value is below it. Default: Otsu's threshold on the pixels of the nodes' cells.
+    white : float, optional
+        Unexposed film gray value (``FilmMeta.white``). Default: :func:`unexposed_level`.
+    fallback : {"imprint", "image"}
+        Without geometry, the nodes' cells are the imprint's bounding box (:func:`find_imprint`) or the whole
+        image (a scan cropped to the flank). Ignored when ``geometry`` is given.
+    path : str or path-like, optional
+        The image's file, for messages and the result.
+
+    Returns
+    -------
+    FilmMap
+
+    Raises
+    ------
+    IdentifyError
+        For an image that is not 2-D, a bad grid or geometry, a geometry made for another grid, a grid too fine
+        for the pixels (fewer than :data:`MIN_PIXELS_PER_SPACING` pixels per spacing), nodes outside the
+        image, a blank film (fallback "imprint"), or a bad threshold or white level. Each message names the
+        file.
+    """
+    name = str(path) if path is not None else "<array>"
+    try:
+        return _map_film(image, grid, geometry, threshold, white, fallback, path)
+    except IdentifyError as e:
+        raise IdentifyError(f"film {name}: {e}") from None
+
+
+def _map_film(image, grid, geometry, threshold, white, fallback, path) -> FilmMap:
+    a = np.asarray(image)
+    if a.ndim != 2 or min(a.shape) < 2:
+        raise IdentifyError(f"expected a 2-D grayscale image of at least 2×2 pixels, got shape {a.shape}")
+    if a.dtype.kind not in "iuf" or not np.isfinite(a).all():
+        raise IdentifyError(f"image must hold finite numbers, got dtype {a.dtype}")
+    a = a.astype(np.float64, copy=False)
+    grid = _grid(grid)
+    rows, cols = grid
+    if fallback not in _FALLBACKS:
+        raise IdentifyError(f"fallback must be one of {', '.join(map(repr, _FALLBACKS))}, got {fallback!r}")
+    if white is None:
+        w = unexposed_level(a)
+    else:
+        w = float(white)
+        if not (math.isfinite(w) and w > 0):
+            raise IdentifyError(f"white (unexposed gray level) must be positive and finite, got {white!r}")
+    if not w > 0:
+        raise IdentifyError("the image is black: no unexposed film to scale the gray values by")
+
+    if geometry is not None:
+        if not isinstance(geometry, FilmGeometry):
+            raise IdentifyError(f"geometry must be a FilmGeometry, got {type(geometry).__name__}")
+        if geometry.grid is not None and geometry.grid != grid:
+            raise IdentifyError(f"the film's metadata is for a {geometry.grid[0]}×{geometry.grid[1]} grid, "
+                                f"the model's grid is {rows}×{cols}")
+        geo, source = geometry, "given"
+    elif fallback == "image":
+        geo, source = _box_geometry((-0.5, a.shape[0] - 0.5, -0.5, a.shape[1] - 0.5), grid), "image"
+    else:
+        geo, source = _box_geometry(find_imprint(a, w), grid), "imprint"
+
+    sr, sc = geo.pixels_per_spacing()
+    for axis, n, s in (("row", rows, sr), ("column", cols, sc)):
+        if n > 1 and s < MIN_PIXELS_PER_SPACING:
+            raise IdentifyError(f"grid {rows}×{cols} is too fine for the image ({a.shape[0]}×{a.shape[1]} pixels): "
+                                f"{s:.3g} pixels per {axis} spacing, needs ≥ {MIN_PIXELS_PER_SPACING:g}")
+    r, c = geo.node_pixels(grid)
+    outside = (r < -0.5) | (r > a.shape[0] - 0.5) | (c < -0.5) | (c > a.shape[1] - 0.5)
+    if outside.any():
+        i, j = np.argwhere(outside)[0]
+        raise IdentifyError(f"grid node ({i}, {j}) falls at pixel ({r[i, j]:.1f}, {c[i, j]:.1f}), outside the "
+                            f"{a.shape[0]}×{a.shape[1]} image ({int(outside.sum())} node(s) outside)")
+    # Bilinear between pixel centres; "nearest" extends edge pixels over the outer half pixel.
+    values = map_coordinates(a, [r.ravel(), c.ravel()], order=1, mode="nearest").reshape(grid)
+
+    if threshold is None:
+        t, t_source = otsu_threshold(_cells(a, geo, grid)), "otsu"
+    else:
+        t, t_source = float(threshold), "given"
+        if not math.isfinite(t):
+            raise IdentifyError(f"threshold must be a finite gray value, got {threshold!r}")
+    contact = values < t
+    if not contact.any() or contact.all():
+        state = "no node is" if not contact.any() else "every node is"
+        warnings.warn(f"film {path if path is not None else '<array>'}: {state} in contact at threshold {t:.6g} "
+                      f"(node gray values {values.min():.6g}–{values.max():.6g})", stacklevel=3)
+    gray = np.clip((w - values) / w, 0.0, 1.0)
+    for x in (gray, contact, values):
+        x.flags.writeable = False
+    return FilmMap(
+        gray=gray, contact=contact, values=values, threshold=t, threshold_source=t_source, level=(w - t) / w,
+        white=w, geometry=geo, geometry_source=source, image_shape=(int(a.shape[0]), int(a.shape[1])),
+        path=None if path is None else str(path),
+    )
+
+
+def read_film(
+    path: str | os.PathLike,
+    grid: tuple[int, int],
+    geometry: FilmGeometry | None = None,
+    *,
+    threshold: float | None = None,
+    white: float | None = None,
+    fallback: str = "imprint",
+) -> FilmMap:
+    """Read a film scan and sample it onto a flank's contact grid: :func:`load_image` then :func:`map_film`.
+
+    With the metadata of a virtual campaign's ``[[films]]`` entry ``m``::
+
+        read_film(path, (7, 31), FilmGeometry.from_mapping(m), threshold=m["contact_level"], white=m["white"])
+
+    and for a lab film without metadata, ``read_film(path, (7, 31))`` (imprint bounding box, Otsu threshold).
+    See :func:`map_film` for the parameters and errors.
+    """
+    return map_film(load_image(path), grid, geometry, threshold=threshold, white=white, fallback=fallback,
+                    path=path)
+
+
+def contact_pattern(left: FilmMap, right: FilmMap) -> ContactPattern:
+    """The contact pattern of a joint from its two flanks' films.
+
+    Parameters
+    ----------
+    left, right : FilmMap
+        The L and R flank films of one joint, on the same grid.
+
+    Returns
+    -------
+    rom.contact.ContactPattern
+
+    Raises
+    ------
+    IdentifyError
+        If the grids differ, or the pattern is not a valid joint (no contact, or all contacts on a line).
+    """
+    if left.grid != right.grid:
+        raise IdentifyError(f"films {left.name} (L) and {right.name} (R) are on different grids: "
+                            f"{left.grid} and {right.grid}")
+    try:
+        return ContactPattern(left.contact, right.contact)
+    except ValueError as e:
+        raise IdentifyError(f"films {left.name} (L) and {right.name} (R): {e}") from None
