@@ -5,7 +5,8 @@
 * ``identify dataset``: δ grid (from the measured blade deltas) × pattern pairs → Parquet, by reanalysis;
 * ``identify predict``: EMA of the blades and the d1b tests → two-step k-NN → a pattern for every joint;
 * ``identify validate``: geometric (vs the truth of a virtual campaign, or the filmed joints) and dynamic
-  (d1b ROM with the predicted pattern vs the measured modes), beside the mean-known-pattern baseline.
+  (tracked d1b ROM frequencies of the feature modes with the predicted pattern vs with the reference one),
+  beside the baseline that gives every joint the mean known pattern.
 
 Stages read the previous stage's file from the output folder (``--out``, default ``out/<campaign>``), so
 they can be run one by one; each prints a table, or JSON with ``--json``.
@@ -75,7 +76,8 @@ def register(sub) -> None:
 
     p = isub.add_parser("validate", help="geometric and dynamic validation of the predicted patterns (§7)")
     common(p)
-    p.add_argument("--predicted", default=None, help="predicted patterns (default: <out>/predicted.npz)")
+    p.add_argument("--predicted", default=None,
+                   help="the k-NN's patterns, with their joints (default: <out>/predicted_knn.npz)")
     p.add_argument("--dataset", default=None, help="dataset (default: <out>/dataset.parquet)")
     p.add_argument("--no-plot", action="store_true", help="skip the validation figures")
     p.set_defaults(func=_cmd_validate)
@@ -205,7 +207,7 @@ def _cmd_sensitivity(args) -> int:
 
 def _cmd_dataset(args) -> int:
     from bladetwin.campaign import read_campaign
-    from bladetwin.pipeline import blade_tests, reduced_models
+    from bladetwin.pipeline import blade_tests, query_deltas, reduced_models
     from identify.dataset import build_dataset, grid_from_deltas, save_dataset
 
     campaign = read_campaign(args.campaign)
@@ -214,9 +216,11 @@ def _cmd_dataset(args) -> int:
     say = (lambda m: None) if args.quiet else (lambda m: print(f"  {m}", file=sys.stderr, flush=True))
     with step("EMA of the free blades (deltas, Eq. 37)", not args.quiet):
         blades = blade_tests(campaign, say)
-    grid = grid_from_deltas(blades.deltas_pct / 100, step=args.step / 100, n_delta_modes=args.delta_modes)
     with step("reduced models (cached)", not args.quiet):
         models = reduced_models(campaign, args.cache_dir)
+    # The grid spans the δ the queries will use: the measured deltas mapped onto the ROM's blade modes.
+    grid = grid_from_deltas(query_deltas(blades, models, args.delta_modes), step=args.step / 100,
+                            n_delta_modes=args.delta_modes)
     n = len(grid) ** args.delta_modes * len(sp.L) * len(sp.R)
     with step(f"dataset: {len(grid)}^{args.delta_modes} δ rows × {len(sp.L) * len(sp.R)} pairs = {n} samples",
               not args.quiet):
@@ -317,8 +321,12 @@ def _cmd_predict(args) -> int:
         raise IdentifyError(f"joints {missing}: neither filmed nor predicted (no usable disk-one-blade test)")
     final = [known.get(j, by_joint.get(j)) for j in range(1, campaign.n_blades + 1)]
     path = save_patterns(out / "predicted.npz", final)
-    knn_path = out / "predicted_knn.npz"
-    save_patterns(knn_path, pred.patterns)  # the k-NN's own answer for every predicted joint (known ones too)
+    # The k-NN's own answer for every predicted joint (the filmed ones too, for validation), with the joints.
+    from rom.fileio import atomic_path
+
+    with atomic_path(out / "predicted_knn.npz") as tmp, open(tmp, "wb") as fh:
+        np.savez(fh, L=np.stack([p.L for p in pred.patterns]), R=np.stack([p.R for p in pred.patterns]),
+                 joints=pred.joints.astype(np.int64))
     rows = []
     for k, j in enumerate(pred.joints):
         lab = pred.match.label[k, 0]
@@ -351,7 +359,16 @@ def _cmd_validate(args) -> int:
 
     campaign = read_campaign(args.campaign)
     out = _out(args, campaign)
-    predicted = load_patterns(args.predicted or out / "predicted_knn.npz")
+    pred_path = Path(args.predicted) if args.predicted else out / "predicted_knn.npz"
+    patterns = load_patterns(pred_path)
+    with np.load(pred_path, allow_pickle=False) as z:
+        pred_joints = [int(j) for j in z["joints"]] if "joints" in z.files else list(range(1, len(patterns) + 1))
+    if len(pred_joints) != len(patterns) or not all(1 <= j <= campaign.n_blades for j in pred_joints):
+        from identify.errors import IdentifyError
+
+        raise IdentifyError(f"{pred_path}: joints {pred_joints} do not match its {len(patterns)} patterns or the "
+                            f"campaign's {campaign.n_blades} joints")
+    predicted = dict(zip(pred_joints, patterns, strict=True))
     known = film_patterns(read_films(campaign))
     truth_dir = campaign.truth_dir
     if truth_dir is not None and (truth_dir / "patterns.npz").is_file():
@@ -361,17 +378,12 @@ def _cmd_validate(args) -> int:
     else:
         reference = known
         source = "films of the known joints"
-    if len(predicted) != campaign.n_blades:
-        from identify.errors import IdentifyError
-
-        raise IdentifyError(f"{args.predicted or out / 'predicted_knn.npz'}: {len(predicted)} patterns for "
-                            f"{campaign.n_blades} joints")
-    unknown = [j for j in range(1, campaign.n_blades + 1) if j in reference and j not in known]
-    joints = unknown or sorted(reference)
+    unknown = [j for j in predicted if j in reference and j not in known]
+    joints = unknown or sorted(j for j in predicted if j in reference)
     with step("reduced models (cached)", not args.quiet):
         models = reduced_models(campaign, args.cache_dir)
     base = mean_known_pattern(known)
-    geo = geometric_validation([predicted[j - 1] for j in joints], [reference[j] for j in joints], models.bd)
+    geo = geometric_validation([predicted[j] for j in joints], [reference[j] for j in joints], models.bd)
     geo_base = geometric_validation([base for _ in joints], [reference[j] for j in joints], models.bd)
     ds = load_dataset(_dataset_path(args, out))
     tr = tracker(models, ds)
@@ -387,7 +399,7 @@ def _cmd_validate(args) -> int:
     with step(f"d1b ROM: predicted, baseline and reference patterns on {len(joints)} joints", not args.quiet):
         for j in joints:
             f_ref = tr.track(reference[j], delta_all[j - 1]).frequencies_hz[feat]
-            f_pred = tr.track(predicted[j - 1], delta_all[j - 1]).frequencies_hz[feat]
+            f_pred = tr.track(predicted[j], delta_all[j - 1]).frequencies_hz[feat]
             f_base = tr.track(base, delta_all[j - 1]).frequencies_hz[feat]
             err_pred.append(100 * (f_pred / f_ref - 1))
             err_base.append(100 * (f_base / f_ref - 1))

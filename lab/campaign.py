@@ -100,6 +100,19 @@ class CampaignSpec:
         """The academic-twin parameters (raises ``ValueError`` naming a bad blade count, grid or level)."""
         return AcademicParams(n_blades=self.n_blades, grid=tuple(self.grid), level=self.level)
 
+    def command(self, out: str | Path) -> str:
+        """The ``bladetwin lab simulate`` command that regenerates this campaign into ``out``.
+
+        Only the command-line settings are spelled out; a spec with non-default truth, pressure, film or line
+        settings (made in Python) cannot be regenerated from the command line, and says so.
+        """
+        cmd = (f"bladetwin lab simulate --out {out} --seed {self.seed} --blades {self.n_blades} "
+               f"--grid {self.grid[0]}x{self.grid[1]} --level {self.level} --known {','.join(map(str, self.known()))}"
+               f" --name {self.name}")
+        custom = self != CampaignSpec(self.seed, self.n_blades, tuple(self.grid), self.level, self.known_joints,
+                                      self.name)
+        return cmd + (" (plus settings made in Python: truth, pressure, film or lines)" if custom else "")
+
     def known(self) -> tuple[int, ...]:
         known = default_known_joints(self.n_blades) if self.known_joints is None else tuple(self.known_joints)
         bad = [k for k in known if isinstance(k, bool) or not isinstance(k, (int, np.integer))
@@ -191,7 +204,7 @@ def _write(spec: CampaignSpec, params: AcademicParams, known: tuple[int, ...], r
     twin = make_truth_twin(bd, patterns, rng_truth, spec.truth)
     manifest: dict = {
         "campaign": {"name": spec.name, "kind": "virtual", "n_blades": params.n_blades, "grid": list(params.grid),
-                     "known_joints": list(known)},
+                     "known_joints": list(known), "generated_by": spec.command(f"measurements/{spec.name}")},
         "model": {"family": "academic", "level": params.level, "n_blades": params.n_blades,
                   "grid": list(params.grid)},
         "tests": [],
