@@ -36,8 +36,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--n", type=int, default=10, help="synthetic patterns per flank (paper: 10)")
     ap.add_argument("--scale", type=float, default=1.0, help="Eq. 31's Scale (default 1)")
     ap.add_argument("--step", type=float, default=0.5, help="δ grid step, %%")
-    ap.add_argument("--method", default="interpolated", choices=["interpolated", "twostep"],
-                    help="step 2: the dataset interpolated to each joint's δ (default), or the paper's two-step k-NN")
+    ap.add_argument("--method", default="twostep", choices=["twostep", "interpolated"],
+                    help="the paper's two-step k-NN (default), or the dataset interpolated to each joint's δ")
     ap.add_argument("--json", default=None, metavar="PATH")
     args = ap.parse_args(argv)
 

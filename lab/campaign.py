@@ -41,6 +41,7 @@ from .rig import MIN_SNR, RigSetup, measure, peak_snr
 from .truth import (
     TruthParams,
     assemble_truth,
+    canonical_degenerate,
     damping_ratios,
     make_truth_twin,
     solve_truth,
@@ -230,6 +231,7 @@ def _write(spec: CampaignSpec, params: AcademicParams, known: tuple[int, ...], r
             modes = replace(modes, meas_labels=[("blade", 0, p, d) for _, _, p, d in modes.meas_labels])
         outputs = list(range(len(asm.meas_labels)))
         inputs = inputs_of(asm.meas_labels)
+        modes = canonical_degenerate(modes, inputs)
         f = modes.frequencies_hz
         zeta = damping_ratios(f.size, rng_damping, spec.truth.damping_range)
         # Band from the modes a test can see: first a generous one, then the first n_wanted visible modes.

@@ -23,6 +23,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import scipy.sparse as sp
+from threadpoolctl import threadpool_limits
 
 from rom.academic import BladedDisk
 from rom.component import Component
@@ -40,6 +41,7 @@ __all__ = [
     "make_truth_twin",
     "assemble_truth",
     "solve_truth",
+    "canonical_degenerate",
     "damping_ratios",
 ]
 
@@ -312,13 +314,57 @@ class TruthModes:
 
 
 def solve_truth(asm: TruthAssembly, n_modes: int) -> TruthModes:
-    """The lowest ``n_modes`` elastic modes of a truth assembly (free–free: the rigid modes come apart)."""
-    sol = solve_modes(asm.K, asm.M, n_modes)
+    """The lowest ``n_modes`` elastic modes of a truth assembly (free–free: the rigid modes come apart).
+
+    The solve runs with one MKL/BLAS thread. Multithreaded Pardiso sums in a run-dependent order: two solves
+    of the same default-level disk–one-blade differed by up to 1.2e-9 in frequency, and regenerating a
+    campaign must reproduce its truth within 1e-9 (measured: one thread gives bitwise-equal results, for
+    about 20 % more time per solve).
+    """
+    with threadpool_limits(limits=1):
+        sol = solve_modes(asm.K, asm.M, n_modes)
     nd = asm.n_disk_dof
     # Mass-normalised shapes: total kinetic energy 1, so the blades hold 1 − the disk's share.
     disk_energy = np.einsum("ij,ij->j", sol.shapes[:nd], asm.M[:nd, :nd] @ sol.shapes[:nd])
     return TruthModes(sol.frequencies_hz, np.asarray(sol.shapes[asm.meas_rows]),
                       np.asarray(sol.rigid_shapes[asm.meas_rows]), list(asm.meas_labels), 1.0 - disk_energy)
+
+
+def canonical_degenerate(modes: TruthModes, inputs: Sequence[int], rtol: float = 1e-7) -> TruthModes:
+    """The same modes with every group of repeated frequencies in a basis fixed by the hammer ``inputs``.
+
+    A cyclic disk's double modes are one eigenspace: the solver returns an arbitrary basis of it, so the
+    response of each member at the hammer (and whether a test "sees" it) would change from run to run. Here
+    each group (frequencies within ``rtol``) is rotated by the SVD of its rows at the inputs: the first members
+    carry the input participation in decreasing order, the rest have none (a hammer excites only that
+    combination). The group's frequencies become their mean and each shape's largest value is positive, so
+    the result does not depend on the solver's basis or order.
+
+    Parameters
+    ----------
+    modes : TruthModes
+    inputs : sequence of int
+        Rows of ``modes.meas_shapes`` that are hammer points.
+    """
+    f = np.array(modes.frequencies_hz, dtype=np.float64)
+    shapes = np.array(modes.meas_shapes, dtype=np.float64)
+    energy = None if modes.blade_energy is None else np.array(modes.blade_energy, dtype=np.float64)
+    start = 0
+    while start < f.size:
+        stop = start + 1
+        while stop < f.size and f[stop] <= f[start] * (1 + rtol):
+            stop += 1
+        if stop - start > 1:
+            g = slice(start, stop)
+            _, _, vt = np.linalg.svd(shapes[list(inputs), g], full_matrices=True)
+            shapes[:, g] = shapes[:, g] @ vt.T
+            f[g] = f[g].mean()
+            if energy is not None:
+                energy[g] = energy[g].mean()
+        start = stop
+    k = np.argmax(np.abs(shapes), axis=0)
+    shapes *= np.where(shapes[k, np.arange(shapes.shape[1])] < 0, -1.0, 1.0)
+    return TruthModes(f, shapes, modes.rigid_shapes, modes.meas_labels, energy)
 
 
 def damping_ratios(n_modes: int, rng: np.random.Generator, damping_range: tuple[float, float]) -> np.ndarray:

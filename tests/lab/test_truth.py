@@ -71,3 +71,26 @@ def test_bad_truth_inputs(coarse_bd, patterns):
         make_truth_twin(coarse_bd, patterns[:3], np.random.default_rng(0))
     with pytest.raises(ValueError, match="contact_stiffness"):
         make_truth_twin(coarse_bd, patterns, np.random.default_rng(0), TruthParams(contact_stiffness_n_per_m3=-1))
+
+
+def test_canonical_degenerate_removes_the_solver_basis_of_a_double_mode():
+    """A double mode in two different bases (as two solver runs may return it) becomes the same modes."""
+    from lab.truth import TruthModes, canonical_degenerate
+
+    rng = np.random.default_rng(4)
+    shapes = rng.standard_normal((8, 4))
+    f = np.array([100.0, 250.0, 250.0 * (1 + 1e-10), 400.0])
+    out = []
+    for angle in (0.3, 2.1):
+        c, s = np.cos(angle), np.sin(angle)
+        rot = shapes.copy()
+        rot[:, 1:3] = shapes[:, 1:3] @ np.array([[c, -s], [s, c]])
+        order = [0, 2, 1, 3] if angle > 1 else [0, 1, 2, 3]  # the solver may also swap the pair
+        m = TruthModes(f[order], rot[:, order], np.zeros((8, 0)), [("x", 0, k, 1) for k in range(8)],
+                       np.array([0.1, 0.5, 0.5, 0.9]))
+        out.append(canonical_degenerate(m, [0]))
+    np.testing.assert_allclose(out[0].meas_shapes, out[1].meas_shapes, atol=1e-12)
+    np.testing.assert_allclose(out[0].frequencies_hz, out[1].frequencies_hz, rtol=1e-15)
+    # the hammer (row 0) excites one combination only; the modes outside the group are untouched up to sign
+    assert abs(out[0].meas_shapes[0, 2]) < 1e-12 < abs(out[0].meas_shapes[0, 1])
+    np.testing.assert_allclose(np.abs(out[0].meas_shapes[:, [0, 3]]), np.abs(shapes[:, [0, 3]]))

@@ -1,0 +1,127 @@
+"""The campaign manifest reader (bladetwin.campaign) and the pipeline's small numerics (bladetwin.pipeline)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from bladetwin.campaign import CampaignError, read_campaign
+from bladetwin.cli import main
+from bladetwin.pipeline import known_bias, match_to_reference, mean_known_pattern
+from rom.contact import ContactPattern
+
+MANIFEST = """
+[campaign]
+name = "mini"
+n_blades = 3
+grid = [3, 7]
+known_joints = [1, 2]
+
+[model]
+family = "academic"
+level = "coarse"
+
+[[tests]]
+type = "blade"
+file = "b1.uff"
+blade = 1
+
+[[tests]]
+type = "assembly"
+file = "a.uff"
+max_order = 120
+
+[[films]]
+joint = 1
+flank = "L"
+file = "f1L.png"
+
+[[films]]
+joint = 1
+flank = "R"
+file = "f1R.png"
+
+[[films]]
+joint = 2
+flank = "L"
+file = "f2L.png"
+
+[[films]]
+joint = 2
+flank = "R"
+file = "f2R.png"
+"""
+
+
+@pytest.fixture
+def folder(tmp_path):
+    for name in ("b1.uff", "a.uff", "f1L.png", "f1R.png", "f2L.png", "f2R.png"):
+        (tmp_path / name).write_bytes(b"x")
+    (tmp_path / "campaign.toml").write_text(MANIFEST)
+    return tmp_path
+
+
+def test_reads_a_good_manifest(folder):
+    c = read_campaign(folder)
+    assert (c.name, c.n_blades, c.grid, c.known_joints) == ("mini", 3, (3, 7), (1, 2))
+    assert [t.type for t in c.tests] == ["blade", "assembly"]
+    assert c.of_type("assembly")[0].max_order == 120 and c.of_type("blade")[0].max_order == 60
+    assert c.film(2, "R").file == (folder / "f2R.png").resolve()
+    assert c.truth_dir is None
+
+
+@pytest.mark.parametrize("old, new, needle", [
+    ('file = "b1.uff"', 'file = "missing.uff"', "'missing.uff' not found"),
+    ('type = "blade"', 'type = "rotor"', "type = 'rotor'"),
+    ("blade = 1", "blade = 4", "blade = 4, expected 1..3"),
+    ("known_joints = [1, 2]", "known_joints = [1, 3]", "known joint 3 has no film for flank L"),
+    ("known_joints = [1, 2]", "known_joints = [0]", "known_joints = [0]"),
+    ("grid = [3, 7]", "grid = [3]", "grid = [3]"),
+    ("max_order = 120", "max_order = -1", "max_order = -1"),
+    ("n_blades = 3", 'n_blades = "3"', "'n_blades'"),
+    ("[campaign]", "[campaign", "not valid TOML"),
+])
+def test_bad_manifests_are_one_line_errors_naming_the_field(folder, capsys, old, new, needle):
+    path = folder / "campaign.toml"
+    path.write_text(MANIFEST.replace(old, new, 1))
+    with pytest.raises(CampaignError, match=None) as exc:
+        read_campaign(folder)
+    msg = str(exc.value)
+    assert needle in msg and str(path) in msg and "\n" not in msg, msg
+    # through the command line: exit 2, one line
+    assert main(["identify", "patterns", str(folder), "--out", str(folder / "out")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and needle in err
+
+
+def test_not_a_campaign_folder(tmp_path):
+    with pytest.raises(CampaignError, match="no campaign.toml"):
+        read_campaign(tmp_path)
+    with pytest.raises(CampaignError, match="not a campaign folder"):
+        read_campaign(tmp_path / "nope")
+
+
+def test_match_to_reference_is_one_to_one_within_the_window():
+    ref = np.array([100.0, 200.0, 205.0, 400.0])
+    measured = np.array([201.0, 99.0, 204.0, 330.0])
+    got = match_to_reference(measured, ref, window=0.05)
+    np.testing.assert_array_equal(got[:3], [99.0, 201.0, 204.0])
+    assert np.isnan(got[3])  # 330 Hz is 17.5 % away from 400 Hz
+    assert np.isnan(match_to_reference(np.array([]), ref)).all()
+
+
+def test_known_bias_is_the_median_ratio_and_ignores_unmatched_modes():
+    rom = {1: np.array([100.0, 200.0]), 2: np.array([100.0, 200.0]), 3: np.array([100.0, 200.0])}
+    meas = {1: np.array([101.0, np.nan]), 2: np.array([102.0, 202.0]), 3: np.array([103.0, 204.0])}
+    np.testing.assert_allclose(known_bias(meas, rom), [0.02, 0.015])
+
+
+def test_mean_known_pattern_is_the_majority_vote():
+    a = np.zeros((3, 7), bool)
+    a[:, :4] = True
+    b = np.zeros((3, 7), bool)
+    b[:, 2:] = True
+    c = np.zeros((3, 7), bool)
+    c[:, 3:6] = True
+    base = mean_known_pattern({1: ContactPattern(a, b), 2: ContactPattern(b, c), 3: ContactPattern(c, a)})
+    np.testing.assert_array_equal(base.L, (a.astype(int) + b + c) >= 2)
