@@ -48,7 +48,7 @@ import numpy as np
 import scipy.linalg as sla
 from scipy.linalg.lapack import dpotrf, dpotrs
 
-from rom.modal import single_thread_blas
+from rom.modal import append_block, single_thread_blas
 
 __all__ = ["RitzModel", "RitzSolution", "ritz_model", "solve_ritz", "frequency_error_bound"]
 
@@ -198,14 +198,7 @@ def _krylov_basis(K, M, Uf, E, block, n_wanted, min_blocks, max_blocks, sigma, t
     KV = np.empty_like(V)
     used = n_kv = 0
     for j in range(max_blocks):
-        Vp = V[:, :used]
-        for _ in range(2):  # block classical Gram–Schmidt, twice (CGS2)
-            if used:
-                X -= Vp @ (Vp.T @ X)
-        Q, _ = np.linalg.qr(X)
-        V[:, used : used + block] = Q
-        MV[:, used : used + block] = M @ Q
-        used += block
+        used = append_block(V, MV, used, X, M)
         if j + 1 >= min_blocks:
             KV[:, n_kv:used] = K @ V[:, n_kv:used]
             n_kv = used

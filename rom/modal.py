@@ -26,6 +26,7 @@ import scipy.linalg as sla
 from scipy.linalg.lapack import dpotrf, dpotrs
 
 __all__ = [
+    "append_block",
     "DenseModes",
     "dense_modes",
     "relative_residuals",
@@ -125,6 +126,37 @@ def single_thread_blas() -> contextlib.AbstractContextManager:
     return ctl.limit(limits=1, user_api="blas")
 
 
+def append_block(V: np.ndarray, MV: np.ndarray, used: int, X: np.ndarray, M) -> int:
+    """Orthonormalise the block ``X`` against ``V[:, :used]`` and append it to V (and M·block to MV), in place.
+
+    Block classical Gram–Schmidt done twice (CGS2: the second pass restores the orthogonality the first loses
+    in floating point), then a thin QR. Shared by the block Lanczos solvers (here and ``identify.reanalysis``).
+
+    Parameters
+    ----------
+    V, MV : ndarray, shape (n, capacity)
+        Basis and its mass products; columns ``[:used]`` are filled.
+    used : int
+    X : ndarray, shape (n, b)
+        The new block; overwritten.
+    M : ndarray or sparse matrix, shape (n, n)
+
+    Returns
+    -------
+    int
+        ``used + b``.
+    """
+    b = X.shape[1]
+    Vp = V[:, :used]
+    for _ in range(2):
+        if used:
+            X -= Vp @ (Vp.T @ X)
+    Q, _ = np.linalg.qr(X)
+    V[:, used : used + b] = Q
+    MV[:, used : used + b] = M @ Q
+    return used + b
+
+
 def _block_lanczos(
     K: np.ndarray, M: np.ndarray, k: int, shift_hz: float, rigid_lam: float, max_rigid: int, seed: int = 0
 ) -> tuple[np.ndarray, np.ndarray, float] | None:
@@ -163,14 +195,7 @@ def _block_lanczos(
     # Thin products with a ~1 500² matrix are memory-bound: one BLAS thread is as fast and far steadier.
     with single_thread_blas():
         for j in range(max_blocks + 1):
-            Vp = V[:, :used]
-            for _ in range(2):  # CGS2: a second pass restores orthogonality lost in the first
-                if used:
-                    X -= Vp @ (Vp.T @ X)
-            Q, _ = np.linalg.qr(X)
-            V[:, used : used + b] = Q
-            MV[:, used : used + b] = M @ Q
-            used += b
+            used = append_block(V, MV, used, X, M)
             if j >= _MIN_BLOCKS - 1:
                 KV[:, n_kv:used] = K @ V[:, n_kv:used]
                 n_kv = used
