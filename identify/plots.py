@@ -352,8 +352,9 @@ def plot_sensitivity(sensitivity, feature_modes: Sequence[int] | None = None, *,
     ax.set_xlabel("disk–one-blade mode")
     ax.set_ylabel("std of frequency [%]" if unit == "pct" else "std of frequency [Hz]")
     ax.set_ylim(0, 1.15 * float(np.nanmax(std)) if n and np.nanmax(std) > 0 else 1)
+    # "best" keeps the legend off the bars and their value labels, wherever the tall bars are
     ax.legend(handles=[Patch(color=_FEATURE, label="feature mode"), Patch(color=_OTHER, label="other")],
-              fontsize="small", loc="upper left")
+              fontsize="small", loc="best")
     chosen = ", ".join(str(k + 1) for k in feat) or "none"
     ax.set_title(f"frequency sensitivity to the contact pattern (feature modes {chosen})")
     return fig
