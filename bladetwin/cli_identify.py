@@ -240,8 +240,9 @@ def _cmd_dataset(args) -> int:
 
 
 def _predict(campaign, out: Path, args, say):
-    """Everything ``predict`` computes: (models, dataset, blades, d1b models, prediction, bias, features)."""
+    """What ``predict`` computes: (models, dataset, prediction, bias per tracked mode, δ of every blade)."""
     from bladetwin.pipeline import (
+        MATCH_WINDOW,
         blade_tests,
         d1b_tests,
         film_patterns,
@@ -292,7 +293,7 @@ def _predict(campaign, out: Path, args, say):
         from identify.errors import IdentifyError
 
         raise IdentifyError("no disk-one-blade test has all feature modes "
-                            f"{[m + 1 for m in ds.feature_modes]} within {100 * 0.05:.0f} % of the dataset's")
+                            f"{[m + 1 for m in ds.feature_modes]} within {100 * MATCH_WINDOW:.0f} % of the dataset's")
     if bad.any():
         import warnings
 

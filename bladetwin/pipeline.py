@@ -28,8 +28,9 @@ from rom.rubin import RubinModel
 from .campaign import Campaign, CampaignError
 
 __all__ = [
-    "Models", "BladeTests", "Prediction", "reduced_models", "read_films", "film_patterns", "synthesize",
-    "blade_tests", "d1b_tests", "match_to_reference", "known_bias", "predict_joints", "mean_known_pattern",
+    "MATCH_WINDOW", "Models", "BladeTests", "Prediction", "model_params", "reduced_models", "read_films",
+    "film_patterns", "synthesize", "blade_tests", "d1b_tests", "match_to_reference", "subset_reference",
+    "known_bias", "predict_joints", "mean_known_pattern", "query_deltas", "tracker",
 ]
 
 #: Window of the frequency matching between measured and tracked modes (relative).
