@@ -46,7 +46,6 @@ def main(argv: list[str] | None = None) -> int:
         blade_tests,
         film_patterns,
         mean_known_pattern,
-        query_deltas,
         read_films,
         reduced_models,
         synthesize,
@@ -78,7 +77,8 @@ def main(argv: list[str] | None = None) -> int:
     blades = blade_tests(campaign)
     say("reduced models")
     models = reduced_models(campaign)
-    grid = grid_from_deltas(query_deltas(blades, models, 3), step=args.step / 100)
+    delta_all = rom_deltas(blades.frequencies_hz, blades.deltas_pct, models.blade.frequencies_hz)
+    grid = grid_from_deltas(delta_all[:, :3], step=args.step / 100)
     say(f"dataset: {len(grid)}^3 δ rows × {len(sp.L) * len(sp.R)} pairs")
     t_ds = time.perf_counter()
     ds = build_dataset(models.disk, models.blade, sp.L, sp.R, grid, progress=False)
@@ -86,8 +86,7 @@ def main(argv: list[str] | None = None) -> int:
     tracker = ModeTracker.from_dataset(models.disk, models.blade, ds)
     knn = TwoStepKNN.from_dataset(ds)
     feat = list(ds.feature_modes)
-    delta_all = rom_deltas(blades.frequencies_hz, blades.deltas_pct, models.blade.frequencies_hz)
-    d3 = query_deltas(blades, models, ds.deltas.shape[1])
+    d3 = delta_all[:, : ds.deltas.shape[1]]
     base = mean_known_pattern(known)
     unknown = [j for j in range(1, campaign.n_blades + 1) if j not in known]
     say(f"k-NN on the numerical input of {len(unknown)} unknown joints")

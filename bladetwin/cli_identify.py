@@ -132,6 +132,20 @@ def _dataset_path(args, out: Path) -> Path:
     return Path(args.dataset) if args.dataset else out / "dataset.parquet"
 
 
+def _dataset_and_tracker(args, out: Path, models):
+    """The stage's dataset and its mode tracker; a dataset of another model is refused, naming the file."""
+    from bladetwin.pipeline import tracker
+    from identify.dataset import load_dataset
+    from identify.errors import IdentifyError
+
+    path = _dataset_path(args, out)
+    ds = load_dataset(path)
+    try:
+        return ds, tracker(models, ds)
+    except IdentifyError as exc:
+        raise IdentifyError(f"{path}: {exc} (`bladetwin identify dataset`)") from None
+
+
 # ------------------------------------------------------------------------------------------------ commands
 def _cmd_patterns(args) -> int:
     from bladetwin.campaign import read_campaign
@@ -249,41 +263,29 @@ def _predict(campaign, out: Path, args, say):
         known_bias,
         match_to_reference,
         predict_joints,
-        query_deltas,
         read_films,
         reduced_models,
         subset_reference,
-        tracker,
     )
-    from identify.dataset import load_dataset
     from rom.mistuning import rom_deltas
 
     quiet = args.quiet
     with step("reduced models (cached)", not quiet):
         models = reduced_models(campaign, args.cache_dir)
-    from identify.sensitivity import model_key
-
-    ds = load_dataset(_dataset_path(args, out))
-    key = model_key(models.disk, models.blade, str(ds.meta.get("formulation", "exact")))
-    if key != ds.model_key:
-        from identify.errors import IdentifyError
-
-        raise IdentifyError(f"{_dataset_path(args, out)}: built with another model (key {ds.model_key[:12]}…, this "
-                            f"campaign's ROM {key[:12]}…); rebuild it with `bladetwin identify dataset`")
+    ds, tr = _dataset_and_tracker(args, out, models)  # before any EMA
     with step("EMA of the free blades and the disk-one-blade tests", not quiet):
         blades = blade_tests(campaign, say)
         d1b = d1b_tests(campaign, say)
     n_dm = ds.deltas.shape[1]
     joints = np.array(sorted(d1b))
     delta_all = rom_deltas(blades.frequencies_hz, blades.deltas_pct, models.blade.frequencies_hz)
-    deltas = query_deltas(blades, models, n_dm)[joints - 1]
+    deltas = delta_all[joints - 1, :n_dm]
     ref = subset_reference(ds, deltas)
     measured = np.array([match_to_reference(d1b[j].frequency_hz, ref[k]) for k, j in enumerate(joints)])
     bias = np.zeros(ds.frequencies_hz.shape[1])
     if not args.no_bias:
         with step("ROM bias on the filmed joints", not quiet):
             known = film_patterns(read_films(campaign))
-            tr = tracker(models, ds)
             rom_hz = {j: tr.track(p, delta_all[j - 1]).frequencies_hz for j, p in known.items() if j in d1b}
             meas_hz = {j: measured[list(joints).index(j)] for j in rom_hz}
             bias = known_bias(meas_hz, rom_hz)
@@ -352,8 +354,7 @@ def _cmd_predict(args) -> int:
 
 def _cmd_validate(args) -> int:
     from bladetwin.campaign import read_campaign
-    from bladetwin.pipeline import film_patterns, mean_known_pattern, read_films, reduced_models, tracker
-    from identify.dataset import load_dataset
+    from bladetwin.pipeline import film_patterns, mean_known_pattern, read_films, reduced_models
     from identify.validation import geometric_validation
     from rom.contact import ContactPattern
     from rom.pattern_io import load_patterns
@@ -386,8 +387,7 @@ def _cmd_validate(args) -> int:
     base = mean_known_pattern(known)
     geo = geometric_validation([predicted[j] for j in joints], [reference[j] for j in joints], models.bd)
     geo_base = geometric_validation([base for _ in joints], [reference[j] for j in joints], models.bd)
-    ds = load_dataset(_dataset_path(args, out))
-    tr = tracker(models, ds)
+    ds, tr = _dataset_and_tracker(args, out, models)
     feat = list(ds.feature_modes)
     from bladetwin.pipeline import blade_tests
     from rom.mistuning import rom_deltas

@@ -10,7 +10,6 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize import linear_sum_assignment
 
 import ema
 from identify.dataset import Dataset
@@ -150,14 +149,9 @@ def match_to_reference(
         The measured frequency matched to each tracked mode; NaN where none lies within ``window``.
     """
     f = np.asarray(frequencies_hz, float)
-    ref = np.asarray(reference_hz, float)
-    out = np.full(ref.size, np.nan)
-    if f.size == 0:
-        return out
-    rel = np.abs(f[None, :] / ref[:, None] - 1)
-    rows, cols = linear_sum_assignment(np.where(rel <= window, rel, 1e6))
-    ok = rel[rows, cols] <= window
-    out[rows[ok]] = f[cols[ok]]
+    out = np.full(np.size(reference_hz), np.nan)
+    rows, cols = ema.pair_by_frequency(reference_hz, f, window)
+    out[rows] = f[cols]
     return out
 
 

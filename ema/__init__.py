@@ -19,7 +19,7 @@ from .frf import FRFSet, Nodes, UnitSystem, convert_form, merge_frfsets
 from .lscf import lscf
 from .lsfd import dominance, fit_quality, lsfd, modal_model, refine_poles, synthesize
 from .lsrf import lsrf
-from .mac import ModePairing, automac, distinct_mac, mac, mac_paired, pair_modes
+from .mac import ModePairing, automac, distinct_mac, mac, mac_paired, pair_by_frequency, pair_modes
 from .modal import ModalModel
 from .poles import PoleSet
 from .selection import PoleSelection, select_auto, select_near, select_picks
@@ -60,6 +60,7 @@ __all__ = [
     "mode_dominance",
     "nodal_diameter_purity",
     "nodal_diameters",
+    "pair_by_frequency",
     "pair_modes",
     "read_frfs",
     "read_modes",

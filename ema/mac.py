@@ -15,7 +15,9 @@ from .errors import EMAError
 from .frf import DOF
 from .modal import ModalModel
 
-__all__ = ["mac", "mac_paired", "distinct_mac", "automac", "common_dofs", "ModePairing", "pair_modes"]
+__all__ = [
+    "mac", "mac_paired", "distinct_mac", "automac", "common_dofs", "ModePairing", "pair_by_frequency", "pair_modes",
+]
 
 
 def _unit_max(x: np.ndarray, axis: int) -> tuple[np.ndarray, np.ndarray]:
@@ -164,6 +166,34 @@ class ModePairing:
     unpaired_a: np.ndarray
     unpaired_b: np.ndarray
     mac_matrix: np.ndarray
+
+
+def pair_by_frequency(fa, fb, freq_window: float = 0.05) -> tuple[np.ndarray, np.ndarray]:
+    """Pair two frequency lists one-to-one (Hungarian on the relative distance) inside a window.
+
+    For modes that shapes cannot tell apart (few measured DOFs), or lists without shapes.
+
+    Parameters
+    ----------
+    fa, fb : array_like, shape (n_a,), (n_b,)
+        Frequencies (Hz).
+    freq_window : float
+        A pair is admissible when ``|f_b - f_a| <= freq_window * f_a``.
+
+    Returns
+    -------
+    rows, cols : ndarray of int
+        Indices into ``fa`` and ``fb`` of the admissible pairs, by ascending ``rows``.
+    """
+    if not freq_window > 0:
+        raise EMAError(f"freq_window {freq_window}: expected > 0")
+    fa, fb = np.asarray(fa, float), np.asarray(fb, float)
+    if fa.size == 0 or fb.size == 0:
+        return np.zeros(0, int), np.zeros(0, int)
+    rel = np.abs(fb[None, :] / fa[:, None] - 1)
+    rows, cols = linear_sum_assignment(np.where(rel <= freq_window, rel, 1e6))
+    ok = rel[rows, cols] <= freq_window
+    return rows[ok], cols[ok]
 
 
 def pair_modes(a: ModalModel, b: ModalModel, freq_window: float = 0.1, mac_min: float = 0.5) -> ModePairing:

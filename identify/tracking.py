@@ -81,10 +81,7 @@ class ModeTracker:
             The dataset was built with another ROM.
         """
         formulation = str(dataset.meta.get("formulation", "exact"))
-        key = model_key(disk, blade, formulation)
-        if key != dataset.model_key:
-            raise IdentifyError(f"dataset model key {dataset.model_key[:12]}… differs from this ROM's {key[:12]}…: "
-                                "the dataset was built with another model; rebuild it")
+        dataset.check_model(model_key(disk, blade, formulation))
         ref = dataset.meta.get("reference")
         if ref is None:
             raise IdentifyError("dataset metadata lacks its reference pair ('reference'); rebuild it")

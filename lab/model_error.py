@@ -17,7 +17,6 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from scipy.optimize import linear_sum_assignment
 
 import ema
 from ema.mac import common_dofs, mac
@@ -94,12 +93,10 @@ def _pair(measured: ema.ModalModel, model: ema.ModalModel, n_first: int | None =
         pr = ema.pair_modes(measured, model, freq_window=0.05, mac_min=0.3)
         return pr.pairs[:, 0], pr.pairs[:, 1], pr.freq_error, pr.mac
     fa, fb = measured.frequency_hz, model.frequency_hz
-    rel = fb[None, :] / fa[:, None] - 1
-    rows, cols = linear_sum_assignment(np.where(np.abs(rel) <= 0.05, np.abs(rel), 1e6))
-    ok = np.abs(rel[rows, cols]) <= 0.05
-    rows, cols = rows[ok], cols[ok]
+    rows, cols = ema.pair_by_frequency(fa, fb, 0.05)
+    rel = fb[cols] / fa[rows] - 1
     pa, pb, _ = common_dofs(measured, model)
-    return rows, cols, rel[rows, cols], np.diag(mac(pa[:, rows], pb[:, cols])) if rows.size else np.zeros(0)
+    return rows, cols, rel, np.diag(mac(pa[:, rows], pb[:, cols])) if rows.size else np.zeros(0)
 
 
 def _ema(root: Path, test: dict) -> ema.ModalModel:
