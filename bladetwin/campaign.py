@@ -6,11 +6,12 @@ problem with a manifest is one line naming the file, the field and what was expe
 
 from __future__ import annotations
 
+import re
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 
-__all__ = ["Campaign", "CampaignError", "FilmEntry", "TestEntry", "read_campaign"]
+__all__ = ["Campaign", "CampaignError", "FilmEntry", "TestEntry", "check_files", "read_campaign"]
 
 TEST_TYPES = ("blade", "disk", "d1b", "assembly")
 
@@ -32,6 +33,11 @@ class TestEntry:
         Blade (``blade`` tests) or joint (``d1b`` tests), 1-based; None for the disk and the assembly.
     max_order : int
         Highest model order of the pole estimator (the manifest's optional EMA hint; default 60).
+    picks : Path or None
+        A picks file (``ema.save_picks``): hand-picked poles that replace the automatic selection.
+    units : str or None
+        FRF unit label the manifest expects (``units`` of the test, else ``frf_units`` of ``[campaign]``),
+        checked against the file's own label before any computation; None: not checked.
     """
 
     __test__ = False  # not a pytest class, despite the name
@@ -40,6 +46,8 @@ class TestEntry:
     file: Path
     index: int | None
     max_order: int = 60
+    picks: Path | None = None
+    units: str | None = None
 
 
 @dataclass(frozen=True)
@@ -158,10 +166,20 @@ def read_campaign(folder: str | Path) -> Campaign:
     known = _need(head, "known_joints", where, list)
     if not all(isinstance(k, int) and not isinstance(k, bool) and 1 <= k <= n_blades for k in known):
         raise CampaignError(f"{where}: known_joints = {known!r}, expected joints in 1..{n_blades}")
+    if len(set(known)) != len(known):
+        raise CampaignError(f"{where}: known_joints = {known!r} names a joint twice")
+    if len(known) < 2:
+        # The PCA sampler needs at least two films per flank to have a direction of variation (Eqs. 23-27).
+        raise CampaignError(f"{where}: known_joints = {known!r}, expected at least 2 filmed joints (the PCA "
+                            "sampler needs two films per flank)")
+    default_units = head.get("frf_units")
+    if default_units is not None and not isinstance(default_units, str):
+        raise CampaignError(f"{where}: frf_units = {default_units!r}, expected a unit label such as 'm/s/N'")
     model = doc.get("model", {})
     if not isinstance(model, dict):
         raise CampaignError(f"{path}: [model] must be a table")
     tests = []
+    seen: dict[tuple, int] = {}
     for k, t in enumerate(_need(doc, "tests", str(path), list)):
         w = f"{path} tests[{k}]"
         if not isinstance(t, dict):
@@ -175,10 +193,21 @@ def read_campaign(folder: str | Path) -> Campaign:
             index = _need(t, key, w, int)
             if not 1 <= index <= n_blades:
                 raise CampaignError(f"{w}: {key} = {index}, expected 1..{n_blades}")
+        # One test per blade, per joint, one disk and one assembly: a second one is a manifest mistake that
+        # would otherwise silently replace the first.
+        if (kind, index) in seen:
+            what = {"blade": f"blade {index}", "d1b": f"joint {index}"}.get(kind, f"the {kind}")
+            raise CampaignError(f"{w}: {what} is named twice (also tests[{seen[kind, index]}])")
+        seen[kind, index] = k
         order = t.get("max_order", 60)
         if not isinstance(order, int) or isinstance(order, bool) or order < 2:
             raise CampaignError(f"{w}: max_order = {order!r}, expected an integer ≥ 2")
-        tests.append(TestEntry(kind, _file(root, t.get("file"), w), index, order))
+        picks = t.get("picks")
+        units = t.get("units", default_units)
+        if units is not None and not isinstance(units, str):
+            raise CampaignError(f"{w}: units = {units!r}, expected a unit label such as 'm/s/N'")
+        tests.append(TestEntry(kind, _file(root, t.get("file"), w), index, order,
+                               None if picks is None else _file(root, picks, f"{w} picks"), units))
     films = []
     for k, f in enumerate(doc.get("films", [])):
         w = f"{path} films[{k}]"
@@ -189,6 +218,8 @@ def read_campaign(folder: str | Path) -> Campaign:
         if not 1 <= joint <= n_blades or flank not in ("L", "R"):
             raise CampaignError(f"{w}: joint {joint!r} flank {flank!r}, expected 1..{n_blades} and L or R")
         meta = {key: v for key, v in f.items() if key not in ("joint", "flank", "file")}
+        if any(g.joint == joint and g.flank == flank for g in films):
+            raise CampaignError(f"{w}: joint {joint} flank {flank} is named twice")
         films.append(FilmEntry(joint, flank, _file(root, f.get("file"), w), meta))
     have = {(f.joint, f.flank) for f in films}
     for j in known:
@@ -197,3 +228,60 @@ def read_campaign(folder: str | Path) -> Campaign:
                 raise CampaignError(f"{path}: known joint {j} has no film for flank {flank}")
     return Campaign(root.resolve(), str(head.get("name", root.name)), str(head.get("kind", "lab")), n_blades, grid,
                     tuple(int(k) for k in known), dict(model), tuple(tests), tuple(films))
+
+
+_JOINT_IN_NAME = re.compile(r"joint[_\- ]?0*(\d+)", re.IGNORECASE)
+_FLANK_IN_NAME = re.compile(r"[_\-]([LR])(?:[_\-.]|$)")
+
+
+def _film_identity(path: Path) -> tuple[int | None, str | None, str]:
+    """(joint, flank, where from) a film image says it shows: its PNG text fields, else its file name."""
+    from PIL import Image, UnidentifiedImageError
+
+    try:
+        with Image.open(path) as im:
+            info = dict(getattr(im, "text", {}) or {})
+    except (UnidentifiedImageError, OSError) as exc:
+        raise CampaignError(f"{path}: not a readable image ({exc})") from None
+    if "joint" in info:
+        try:
+            return int(info["joint"]), info.get("flank"), "its PNG text field 'joint'"
+        except ValueError:
+            raise CampaignError(f"{path}: PNG text field joint = {info['joint']!r}, expected an integer") from None
+    m = _JOINT_IN_NAME.search(path.stem)
+    f = _FLANK_IN_NAME.search(path.stem)
+    return (int(m.group(1)) if m else None), (f.group(1) if f else None), "its file name"
+
+
+def check_files(campaign: Campaign, say=lambda msg: None) -> None:
+    """Check every file the manifest names before any long computation.
+
+    Every UFF must read (``ema.read_uff`` refuses damaged files), carry the FRF unit label the manifest
+    expects (``units`` / ``frf_units``) and a picks file must load. Every film must be a readable image whose
+    joint and flank, where the image says (PNG text fields ``joint``/``flank``) or its file name does
+    (``joint_07_L.png``), are the ones the manifest gives it.
+
+    Raises
+    ------
+    CampaignError, ema.EMAError
+        One line naming the file and what is wrong.
+    """
+    import ema
+
+    manifest = campaign.root / "campaign.toml"
+    for t in campaign.tests:
+        say(f"checking {t.file.name}")
+        frf = ema.read_uff(t.file)
+        if t.units is not None and frf.units.replace(" ", "") != t.units.replace(" ", ""):
+            raise CampaignError(f"{t.file}: FRF units {frf.units!r}, but {manifest.name} says {t.units!r} "
+                                "(units / frf_units): convert the file or correct the manifest")
+        if t.picks is not None:
+            ema.load_picks(t.picks)
+    for f in campaign.films:
+        joint, flank, source = _film_identity(f.file)
+        if joint is not None and joint != f.joint:
+            raise CampaignError(f"{manifest} films: {f.file.name} is a film of joint {joint} ({source}), but the "
+                                f"manifest gives it to joint {f.joint}")
+        if flank is not None and flank != f.flank:
+            raise CampaignError(f"{manifest} films: {f.file.name} is a film of flank {flank} ({source}), but the "
+                                f"manifest gives it to flank {f.flank}")

@@ -15,7 +15,7 @@ import zipfile
 __all__ = ["main", "build_parser", "error_message"]
 
 # Sub-command modules, in help order. Each must define ``register(subparsers) -> None``.
-_COMMAND_MODULES = ("cli_run", "cli_fe", "cli_ema", "cli_rom", "cli_lab", "cli_identify")
+_COMMAND_MODULES = ("cli_run", "cli_report", "cli_fe", "cli_ema", "cli_rom", "cli_lab", "cli_identify")
 
 
 def build_parser() -> argparse.ArgumentParser:

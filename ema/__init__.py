@@ -21,6 +21,7 @@ from .lsfd import dominance, fit_quality, lsfd, modal_model, refine_poles, synth
 from .lsrf import lsrf
 from .mac import ModePairing, automac, distinct_mac, mac, mac_paired, pair_by_frequency, pair_modes
 from .modal import ModalModel
+from .picks import Picks, fit_with_picks, load_picks, save_picks
 from .poles import PoleSet
 from .selection import PoleSelection, select_auto, select_near, select_picks
 from .stabilization import StabilityCriteria, StabilizationDiagram, stabilize
@@ -33,6 +34,7 @@ __all__ = [
     "ModalModel",
     "ModePairing",
     "Nodes",
+    "Picks",
     "PoleSelection",
     "PoleSet",
     "StabilityCriteria",
@@ -48,7 +50,9 @@ __all__ = [
     "estimate_poles",
     "fit",
     "fit_quality",
+    "fit_with_picks",
     "joint_frequencies",
+    "load_picks",
     "local_poles",
     "lscf",
     "lsfd",
@@ -68,6 +72,7 @@ __all__ = [
     "read_uff",
     "read_units",
     "refine_poles",
+    "save_picks",
     "select_auto",
     "select_near",
     "select_picks",

@@ -335,8 +335,8 @@ class ModeComparison:
         return float(np.mean(self.mac)) if self.pairs.size else float("nan")
 
 
-def compare_modes(reference, predicted, *, pairing: str = "mac", freq_window: float | None = DEFAULT_FREQ_WINDOW
-                  ) -> ModeComparison:
+def compare_modes(reference, predicted, *, pairing: str = "mac", freq_window: float | None = DEFAULT_FREQ_WINDOW,
+                  mac_min: float = 0.0) -> ModeComparison:
     """Pair predicted modes with reference modes and compare frequencies and shapes.
 
     Used for the full bladed disk (paper Figs. 24, 28 and Table 8: Case A = ROM with predicted patterns
@@ -354,6 +354,11 @@ def compare_modes(reference, predicted, *, pairing: str = "mac", freq_window: fl
     freq_window : float or None
         With ``"mac"``, a pair is admissible only when ``|f_pred − f_ref| ≤ freq_window · f_ref``; None
         admits every pair.
+    mac_min : float
+        With ``"mac"``, a pair is admissible only when its MAC reaches this (default 0: any). Against a
+        measurement, whose shapes in dense families can be poorly identified, a small threshold (0.3) keeps
+        a mode without a credible partner unpaired instead of forcing it onto a distant one; the number of
+        pairs then says how many measured modes were compared.
 
     Returns
     -------
@@ -368,6 +373,8 @@ def compare_modes(reference, predicted, *, pairing: str = "mac", freq_window: fl
         raise IdentifyError(f"pairing={pairing!r}: expected 'mac' or 'index'")
     if freq_window is not None and not freq_window > 0:
         raise IdentifyError(f"freq_window={freq_window!r}: expected > 0 or None")
+    if not 0 <= mac_min < 1:
+        raise IdentifyError(f"mac_min={mac_min!r}: expected 0 <= mac_min < 1")
     a, b = _modes("reference", reference), _modes("predicted", predicted)
     pa, pb = _common_rows(reference, predicted, a, b)
     fa, fb = a[0], b[0]
@@ -377,6 +384,7 @@ def compare_modes(reference, predicted, *, pairing: str = "mac", freq_window: fl
         rows = cols = np.arange(min(fa.size, fb.size))
     else:
         ok = np.ones(M.shape, bool) if freq_window is None else np.abs(ferr) <= freq_window
+        ok &= M >= mac_min
         cost = np.where(ok, 1.0 - M + 1e-6 * np.abs(ferr), 1e6)
         rows, cols = linear_sum_assignment(cost)
         good = ok[rows, cols]

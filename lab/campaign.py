@@ -239,7 +239,9 @@ def _write(spec: CampaignSpec, params: AcademicParams, known: tuple[int, ...], r
     twin = make_truth_twin(bd, patterns, rng_truth, spec.truth)
     manifest: dict = {
         "campaign": {"name": spec.name, "kind": "virtual", "n_blades": params.n_blades, "grid": list(params.grid),
-                     "known_joints": list(known), "generated_by": spec.command(f"measurements/{spec.name}")},
+                     "known_joints": list(known), "generated_by": spec.command(f"measurements/{spec.name}"),
+                     # what every UFF of the rig holds; `bladetwin run` checks each file against it
+                     "frf_units": "m/s/N"},
         "model": {"family": "academic", "level": params.level, "n_blades": params.n_blades,
                   "grid": list(params.grid)},
         "tests": [],

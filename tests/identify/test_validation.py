@@ -198,3 +198,17 @@ def test_d1b_validation_on_rom_modes_matched_by_measurement_label():
     assert not np.allclose(v.freq_error_pct[1], 0.0)
     with pytest.raises(IdentifyError, match="feature mode 9"):
         d1b_validation([ma], [mb], feature_modes=(9,))
+
+
+def test_compare_modes_mac_min_leaves_a_mode_without_a_credible_partner_unpaired():
+    # mode 2 of the "measurement" is noise-like: orthogonal to every predicted shape within the window
+    ref_shapes = np.array([[1.0, 0.0], [0.0, 0.0], [0.0, 1.0]])
+    pred_shapes = np.array([[1.0, 0.0], [0.0, 1.0], [0.0, 0.0]])
+    f_ref, f_pred = np.array([100.0, 200.0]), np.array([100.5, 201.0])
+    forced = compare_modes((f_ref, ref_shapes), (f_pred, pred_shapes))
+    assert len(forced.pairs) == 2 and forced.mac[1] == pytest.approx(0.0)
+    kept = compare_modes((f_ref, ref_shapes), (f_pred, pred_shapes), mac_min=0.3)
+    assert kept.pairs.tolist() == [[0, 0]] and kept.unpaired_ref.tolist() == [1]
+    assert kept.mean_mac == pytest.approx(1.0) and kept.mean_abs_freq_error_pct == pytest.approx(0.5)
+    with pytest.raises(IdentifyError, match="mac_min"):
+        compare_modes((f_ref, ref_shapes), (f_pred, pred_shapes), mac_min=1.0)

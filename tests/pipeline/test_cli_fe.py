@@ -45,8 +45,8 @@ def test_fe_plot_writes_png(tmp_path, capsys):
     assert not list(out.parent.glob(".*tmp"))  # atomic write leaves no temporary file
 
 
-def test_run_fe_demo(tmp_path, capsys):
-    assert main(["run", *SMALL, "--out", str(tmp_path)]) == 0
+def test_fe_demo(tmp_path, capsys):
+    assert main(["fe", "demo", *SMALL, "--out", str(tmp_path)]) == 0
     text = capsys.readouterr().out
     assert "FE demo" in text and "Table 1" in text and "Table 3" in text
     summary = json.loads((tmp_path / "fe_demo.json").read_text())
@@ -68,7 +68,8 @@ def test_bad_input_is_one_clear_line(capsys, argv, message):
     assert err[-1].startswith("bladetwin: error:") and message in err[-1]
 
 
-@pytest.mark.parametrize("argv", [[], ["fe"], ["fe", "info"], ["fe", "modes"], ["fe", "plot"], ["run"]])
+@pytest.mark.parametrize("argv", [[], ["fe"], ["fe", "info"], ["fe", "modes"], ["fe", "plot"], ["fe", "demo"], ["run"],
+                                  ["report"]])
 def test_help_everywhere(capsys, argv):
     with pytest.raises(SystemExit) as exc:
         main([*argv, "--help"])

@@ -1,0 +1,599 @@
+"""``bladetwin run``: the whole identification on a campaign folder (design §2, issue 11).
+
+Stages, each timed and each cached by the hash of its inputs (a warm re-run recomputes nothing unchanged):
+
+1. **EMA** of every UFF of the manifest: automatic selection (LSRF), or the test's picks file. Gives the
+   blade deltas (Eq. 37), the disk modes with nodal diameters, the disk–one-blade table and the full
+   assembly's modes.
+2. **ROM**: reduced disk (one slot) and Rubin blade (``rom.cache``).
+3. **Films → synthetic patterns → sensitivity → dataset** (PCA sampler, §6.1–6.3).
+4. **Model bias** of the ROM, per tracked mode, on the filmed joints (their patterns are known).
+5. **Two-step k-NN** for every joint, from the measured deltas and d1b frequencies (experimental input,
+   bias removed); with reference patterns for every joint (``truth/``), also from the numerical input.
+6. **Validation**: geometric, disk–one-blade, and the full assembly's Cases A/B/C (paper §8) beside a
+   baseline that gives every unfilmed joint the majority pattern of the films.
+
+Computing lives here; :mod:`bladetwin.run_outputs` writes the tables, figures and the report.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import multiprocessing
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+import ema
+from identify.dataset import Dataset, build_dataset, grid_from_deltas, load_dataset, save_dataset
+from identify.errors import IdentifyError
+from identify.knn import TwoStepKNN, query_matrix
+from identify.sensitivity import Sensitivity, model_key, sensitivity
+from identify.tracking import ModeTracker
+from identify.validation import GridError, ModeComparison, compare_modes, grid_error
+from lab.rig import dof_label
+from rom import cache
+from rom.contact import ContactPattern
+from rom.fileio import atomic_path
+from rom.mistuning import rom_deltas
+
+from .campaign import Campaign, CampaignError, TestEntry, check_files
+from .pipeline import (
+    MATCH_WINDOW,
+    BladeTests,
+    Models,
+    film_patterns,
+    known_bias,
+    match_to_reference,
+    mean_known_pattern,
+    read_films,
+    reduced_models,
+    subset_reference,
+    synthesize,
+)
+
+__all__ = ["RunOptions", "EMAOutcome", "FullModes", "RunResult", "run_campaign", "ema_stage", "rom_modal_model"]
+
+#: Bump when a stage's results change for the same inputs (invalidates the stage caches).
+EMA_CACHE_VERSION = 1
+FULL_CACHE_VERSION = 1
+
+#: The tests of each type whose stabilization diagram goes into the report (first of each type).
+PAPER_TABLE8 = {"A": {"mean_abs_df_pct": 0.07, "mean_mac": 0.91}, "B": {"mean_abs_df_pct": 0.73, "mean_mac": 0.85},
+                "C": {"mean_abs_df_pct": 0.46, "mean_mac": 0.82}}
+
+
+@dataclass(frozen=True)
+class RunOptions:
+    """Settings of a run (defaults: the paper's).
+
+    Attributes
+    ----------
+    cache_dir : Path or None
+        Stage caches (EMA, datasets, full-assembly solves) and reduced models; default ``rom.cache``'s.
+    n_patterns, scale, seed :
+        PCA sampler: synthetic patterns per flank, Eq. 31's Scale, random seed.
+    step_pct : float
+        δ grid step (%).
+    n_features, n_delta_modes : int
+        Feature modes of the k-NN, blade modes on the δ grid.
+    bias : bool
+        Remove the ROM's per-mode bias estimated on the filmed joints (step 4).
+    workers : int
+        Processes for the EMA and the full-assembly solves (each single-threaded).
+    """
+
+    cache_dir: Path | None = None
+    n_patterns: int = 10
+    scale: float = 1.0
+    seed: int = 0
+    step_pct: float = 0.5
+    n_features: int = 3
+    n_delta_modes: int = 3
+    bias: bool = True
+    workers: int = 2
+
+
+@dataclass(frozen=True, eq=False)
+class EMAOutcome:
+    """One test's EMA: its modal model, fit quality, how its poles were chosen, and its diagram figure."""
+
+    test: TestEntry
+    model: ema.ModalModel
+    fit_quality: np.ndarray
+    method: str
+    picked: bool
+    diagram_png: Path | None
+    cached: bool
+
+
+@dataclass(frozen=True, eq=False)
+class FullModes:
+    """Modes of one full-assembly ROM: frequencies (Hz, shape (n,)), shapes at the measurement DOFs, labels."""
+
+    frequencies_hz: np.ndarray
+    meas_shapes: np.ndarray
+    meas_labels: list
+
+
+@dataclass(frozen=True, eq=False)
+class RunResult:
+    """Everything a run computed (inputs of :mod:`bladetwin.run_outputs`).
+
+    Frequencies are in Hz, δ and bias relative (0.01 = 1 %). ``joints`` (shape (n_joints,)) are the joints
+    with a disk–one-blade test; ``measured_hz`` (shape (n_joints, n_tracked)) their EMA frequencies matched to
+    the dataset's tracked modes (NaN: not found); ``final_patterns`` holds one pattern per joint 1..N (films
+    at the known joints); ``full`` the full-assembly ROM modes by name (identified, identified_no_bias,
+    baseline, reference, numerical); ``cases`` Table 8 (None where unavailable).
+    """
+
+    campaign: Campaign
+    options: RunOptions
+    ema: dict[str, EMAOutcome]
+    blades: BladeTests
+    models: Models
+    films: dict
+    known: dict[int, ContactPattern]
+    synthetic: object
+    sensitivity_files: dict[str, Path]
+    dataset: Dataset
+    delta_all: np.ndarray
+    joints: np.ndarray
+    measured_hz: np.ndarray
+    bias: np.ndarray
+    bias_spread: np.ndarray
+    predictions: dict
+    final_patterns: list[ContactPattern]
+    baseline_pattern: ContactPattern
+    reference: list[ContactPattern] | None
+    d1b_rows: list[dict]
+    full: dict[str, FullModes]
+    cases: dict
+    comparisons: dict[str, ModeComparison]
+    step1: GridError
+    notes: list[str]
+    timings_s: dict[str, float] = field(default_factory=dict)
+
+
+# ------------------------------------------------------------------------------------------------- helpers
+def _sha(path: Path) -> str:
+    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+
+
+def _save_npz(path: Path, **arrays) -> None:
+    with atomic_path(path) as tmp, open(tmp, "wb") as fh:
+        np.savez(fh, **arrays)
+
+
+def _fork_map(fn, jobs: list, workers: int, on_done: Callable[[int, int, object], None] = lambda k, n, r: None
+              ) -> list:
+    """``fn`` over ``jobs`` in ``workers`` forked processes (one by one where fork is missing or workers < 2).
+
+    Forked children share the parent's models copy-on-write; every job writes its result to the cache and
+    returns only small values, so nothing large is pickled. ``on_done(k, n, result)`` reports progress as
+    jobs finish (k of n).
+    """
+    out = []
+    if workers < 2 or len(jobs) < 2 or "fork" not in multiprocessing.get_all_start_methods():
+        for j in jobs:
+            out.append(fn(j))
+            on_done(len(out), len(jobs), out[-1])
+        return out
+    with multiprocessing.get_context("fork").Pool(min(workers, len(jobs))) as pool:
+        for r in pool.imap_unordered(fn, jobs, chunksize=1):
+            out.append(r)
+            on_done(len(out), len(jobs), r)
+    return out
+
+
+def rom_modal_model(frequencies_hz: np.ndarray, meas_shapes: np.ndarray, meas_labels) -> ema.ModalModel:
+    """ROM modes as an undamped :class:`ema.ModalModel` on the rig's UFF DOF labels (``lab.rig.dof_label``)."""
+    dofs = tuple(dof_label(tuple(lab)) for lab in meas_labels)
+    n = np.size(frequencies_hz)
+    return ema.ModalModel(np.asarray(frequencies_hz, float), np.zeros(n), np.asarray(meas_shapes).astype(complex),
+                          dofs)
+
+
+# ------------------------------------------------------------------------------------------------- stage 1: EMA
+def _test_name(t: TestEntry) -> str:
+    return t.type if t.index is None else f"{t.type}_{t.index:02d}"
+
+
+def _ema_key(t: TestEntry) -> str:
+    picks = _sha(t.picks) if t.picks is not None else ""
+    return cache.hash_inputs("ema", EMA_CACHE_VERSION, _sha(t.file), t.max_order, picks)[:32]
+
+
+_EMA_JOB: dict = {}
+
+
+def _ema_job(name: str) -> str:
+    """Fit one test (automatic selection or its picks) and store the model (+ diagram figure) in the cache."""
+    t, path, plot = _EMA_JOB["tests"][name]
+    frf = ema.read_uff(t.file)
+    if t.picks is not None:
+        res = ema.fit_with_picks(frf, ema.load_picks(t.picks))
+    else:
+        res = ema.fit(frf, max_order=t.max_order)
+    m = res.model
+    if plot:
+        from ema.plots import plot_stabilization
+
+        from .util import atomic_savefig
+
+        fig = plot_stabilization(res.diagram, frf, selected_hz=m.frequency_hz)
+        fig.axes[0].set_title(f"{t.file.name}: {res.diagram.method.upper()}, "
+                              f"{'picked by hand' if t.picks is not None else 'automatic selection'}, "
+                              f"{m.n_modes} modes")
+        atomic_savefig(fig, path.with_suffix(".png"), dpi=110)
+        import matplotlib.pyplot as plt
+
+        plt.close(fig)
+    _save_npz(path, frequency_hz=m.frequency_hz, damping_ratio=m.damping_ratio, shapes=m.shapes,
+              dofs=np.asarray(m.dofs, np.int64).reshape(-1, 2), fit_quality=np.asarray(res.quality, float),
+              method=np.array(res.diagram.method), scaling=np.array(m.scaling),
+              picked=np.array(t.picks is not None))
+    return name
+
+
+def ema_stage(campaign: Campaign, cache_dir: Path, *, workers: int = 2,
+              say: Callable[[str], None] = lambda m: None) -> dict[str, EMAOutcome]:
+    """EMA of every test of the campaign, through the EMA cache (keyed by file bytes, order and picks).
+
+    The first test of each type, and every test with picks, also gets its stabilization diagram (PNG
+    beside the cached model).
+    """
+    folder = cache_dir / "ema"
+    folder.mkdir(parents=True, exist_ok=True)
+    tests, first = {}, set()
+    for t in campaign.tests:
+        name = _test_name(t)
+        plot = t.type not in first or t.picks is not None
+        first.add(t.type)
+        tests[name] = (t, folder / f"{name}-{_ema_key(t)}.npz", plot)
+    todo = [n for n, (_, p, plot) in tests.items() if not p.is_file() or (plot and not p.with_suffix(".png").is_file())]
+    # the dense full-assembly spectrum first: it is the longest job, the others fill the other worker
+    todo.sort(key=lambda n: (tests[n][0].type != "assembly", n))
+    if todo:
+        say(f"EMA of {len(todo)} of {len(tests)} tests ({len(tests) - len(todo)} cached)")
+        _EMA_JOB["tests"] = tests
+        try:
+            _fork_map(_ema_job, todo, workers, lambda k, n, name: say(f"  EMA {k}/{n}: {name}"))
+        finally:
+            _EMA_JOB.clear()
+    out = {}
+    for name, (t, path, plot) in tests.items():
+        with np.load(path, allow_pickle=False) as z:
+            m = ema.ModalModel(z["frequency_hz"], z["damping_ratio"], z["shapes"],
+                               tuple((int(a), int(b)) for a, b in z["dofs"]), scaling=str(z["scaling"]))
+            out[name] = EMAOutcome(t, m, z["fit_quality"], str(z["method"]), bool(z["picked"]),
+                                   path.with_suffix(".png") if plot else None, name not in todo)
+    return out
+
+
+def blade_table(outcomes: dict[str, EMAOutcome], campaign: Campaign) -> BladeTests:
+    """Blade frequencies and deltas (Eq. 37) from the blade tests' EMA."""
+    models = {n: o.model for n, o in outcomes.items() if o.test.type == "blade"}
+    if len(models) != campaign.n_blades:
+        raise CampaignError(f"{campaign.root / 'campaign.toml'}: {len(models)} blade tests for {campaign.n_blades} "
+                            "blades; the deltas need every blade")
+    return BladeTests(models, ema.campaign.frequency_table(models).to_numpy(), ema.blade_deltas(models).to_numpy())
+
+
+# ------------------------------------------------------------------------------------------------- stage 3: dataset
+def dataset_stage(models: Models, synthetic, grid: np.ndarray, opts: RunOptions, cache_dir: Path,
+                  say: Callable[[str], None] = lambda m: None) -> tuple[Dataset, dict[str, Path]]:
+    """Sensitivity and dataset through the dataset cache (keyed by the model, patterns, δ grid and features).
+
+    Returns the dataset and its sensitivity files (figures of paper Figs. 15–16 and a table), kept beside
+    it in the cache. The sensitivity is computed whenever the dataset or any of those files is missing.
+    """
+    mk = model_key(models.disk, models.blade)
+    key = cache.hash_inputs("dataset", mk, np.asarray(synthetic.L), np.asarray(synthetic.R), np.asarray(grid),
+                            opts.n_features, opts.n_delta_modes)[:32]
+    folder = cache_dir / "datasets"
+    path = folder / f"dataset-{key}.parquet"
+    files = {"sensitivity.png": folder / f"dataset-{key}-sensitivity.png",
+             "frequency_maps.png": folder / f"dataset-{key}-frequency_maps.png",
+             "sensitivity.csv": folder / f"dataset-{key}-sensitivity.csv"}
+    if path.is_file() and all(f.is_file() for f in files.values()):
+        return load_dataset(path, model_key=mk), files
+    say(f"sensitivity over {len(synthetic.L) * len(synthetic.R)} pattern pairs")
+    sens = sensitivity(models.disk, models.blade, synthetic.L, synthetic.R, n_features=opts.n_features,
+                       progress=False)
+    folder.mkdir(parents=True, exist_ok=True)
+    _write_sensitivity(sens, files)
+    if path.is_file():
+        return load_dataset(path, model_key=mk), files
+    n = len(grid) ** opts.n_delta_modes * len(synthetic.L) * len(synthetic.R)
+    say(f"dataset: {len(grid)}^{opts.n_delta_modes} δ rows × {len(synthetic.L) * len(synthetic.R)} pairs = {n} "
+        "samples (reanalysis)")
+    ds = build_dataset(models.disk, models.blade, synthetic.L, synthetic.R, grid, n_delta_modes=opts.n_delta_modes,
+                       sensitivity=sens, n_features=opts.n_features, progress=False)
+    save_dataset(ds, path)
+    return ds, files
+
+
+def _write_sensitivity(sens: Sensitivity, files: dict[str, Path]) -> None:
+    """The sensitivity figures (paper Figs. 15–16) and table, written beside the dataset."""
+    import matplotlib.pyplot as plt
+
+    from identify.plots import plot_frequency_maps, plot_sensitivity
+
+    from .util import atomic_savefig, atomic_write_text
+
+    for name, fig in (("sensitivity.png", plot_sensitivity(sens)),
+                      ("frequency_maps.png", plot_frequency_maps(sens))):
+        atomic_savefig(fig, files[name], dpi=110)
+        plt.close(fig)
+    rows = "".join(f"{m + 1},{sens.mean_hz[m]:.6g},{sens.std_hz[m]:.6g},{sens.std_rel_pct[m]:.6g},"
+                   f"{int(m in sens.feature_modes)}\n" for m in range(sens.n_modes))
+    atomic_write_text(files["sensitivity.csv"], "mode,mean_hz,std_hz,std_pct,feature\n" + rows)
+
+
+# ------------------------------------------------------------------------------------------------- stage 6: full
+_FULL_JOB: dict = {}
+
+
+def _full_job(name: str) -> str:
+    from threadpoolctl import threadpool_limits
+
+    from rom.rom_assembly import solve_full
+
+    models, patterns, deltas, n_modes, path = _FULL_JOB["jobs"][name]
+    # one MKL thread per process: the solves run side by side, one per core
+    with threadpool_limits(1 if _FULL_JOB.get("parallel") else None):
+        modes = solve_full(models.bd, models.blade, {s + 1: p for s, p in enumerate(patterns)}, deltas,
+                           n_modes=n_modes)
+    _save_npz(path, frequencies_hz=modes.frequencies_hz, meas_shapes=modes.meas_shapes,
+              meas_labels=np.array(json.dumps([list(lab) for lab in modes.meas_labels])))
+    return name
+
+
+def full_stage(models: Models, jobs: dict[str, list[ContactPattern]], deltas: np.ndarray, n_modes: int,
+               cache_dir: Path, *, workers: int = 2, say: Callable[[str], None] = lambda m: None
+               ) -> dict[str, FullModes]:
+    """Full-assembly ROM modes for each named set of patterns (one per slot), cached by their inputs."""
+    folder = cache_dir / "full"
+    folder.mkdir(parents=True, exist_ok=True)
+    mk = model_key(models.disk, models.blade)
+    paths, unique = {}, {}
+    for name, pats in jobs.items():
+        key = cache.hash_inputs("full", FULL_CACHE_VERSION, mk, np.stack([p.L for p in pats]),
+                                np.stack([p.R for p in pats]), np.asarray(deltas, float), int(n_modes))[:32]
+        paths[name] = folder / f"full-{key}.npz"
+        unique.setdefault(paths[name], name)  # identical inputs (e.g. the same patterns with and without bias)
+    todo = [n for p, n in unique.items() if not p.is_file()]
+    if todo:
+        say(f"full-assembly ROM: {len(todo)} solve(s) of {n_modes} modes ({', '.join(todo)}), "
+            f"{min(workers, len(todo))} at a time")
+        _FULL_JOB["jobs"] = {n: (models, jobs[n], deltas, n_modes, paths[n]) for n in todo}
+        # Pairs of single-threaded solves side by side; an odd one out runs last in this process with every
+        # thread, rather than alone on one core of the pool.
+        pooled = todo[:-1] if workers == 2 and len(todo) % 2 else todo
+        try:
+            _FULL_JOB["parallel"] = workers > 1 and len(pooled) > 1
+            _fork_map(_full_job, pooled, workers,
+                      lambda k, n, name: say(f"  full-assembly solve {k}/{len(todo)}: {name}"))
+            if len(pooled) < len(todo):
+                _FULL_JOB["parallel"] = False
+                _full_job(todo[-1])
+                say(f"  full-assembly solve {len(todo)}/{len(todo)}: {todo[-1]}")
+        finally:
+            _FULL_JOB.clear()
+    out = {}
+    for name, path in paths.items():
+        with np.load(path, allow_pickle=False) as z:
+            out[name] = FullModes(z["frequencies_hz"], z["meas_shapes"],
+                                  [tuple(lab) for lab in json.loads(str(z["meas_labels"]))])
+    return out
+
+
+def _case(c: ModeComparison | None) -> dict | None:
+    """Table 8's figures of one comparison: mean |Δf| (%), mean MAC, pairs, and the reference modes offered."""
+    if c is None or not c.pairs.size:
+        return None
+    return {"mean_abs_df_pct": c.mean_abs_freq_error_pct, "mean_mac": c.mean_mac, "n_modes": int(len(c.pairs)),
+            "n_reference_modes": int(c.mac_matrix.shape[0])}
+
+
+#: Pairing of a ROM's modes with measured ones (Cases B, C): MAC-maximizing, within ±5 %, MAC ≥ 0.3, as the
+#: rig's own Case C check (``lab.model_error``). Measured shapes in dense families can be poor; a mode without
+#: a credible partner stays unpaired (counted in ``n_measured``) rather than being forced onto a distant one.
+MEASURED_WINDOW, MEASURED_MAC_MIN = 0.05, 0.3
+
+
+def _vs_measured(measured: ema.ModalModel, rom: FullModes) -> ModeComparison:
+    """A ROM's modes against the measured ones, on their common DOFs (shapes sign-aware through the MAC)."""
+    from ema.mac import common_dofs
+
+    model = rom_modal_model(rom.frequencies_hz, rom.meas_shapes, rom.meas_labels)
+    pa, pb, _ = common_dofs(measured, model)
+    if pa.shape[0] < 2:
+        raise CampaignError("the full-assembly test and the ROM share fewer than 2 measurement DOFs: the node "
+                            "numbering of the UFF file does not follow the rig's convention (docs/campaign.md)")
+    return compare_modes((measured.frequency_hz, pa), (model.frequency_hz, pb), freq_window=MEASURED_WINDOW,
+                         mac_min=MEASURED_MAC_MIN)
+
+
+def _in_band(m: FullModes, f_max: float) -> FullModes:
+    keep = m.frequencies_hz <= f_max
+    return FullModes(m.frequencies_hz[keep], m.meas_shapes[:, keep], m.meas_labels)
+
+
+# ------------------------------------------------------------------------------------------------- the run
+def run_campaign(campaign: Campaign, opts: RunOptions = RunOptions(),
+                 say: Callable[[str], None] = lambda m: None) -> RunResult:
+    """Run every stage on ``campaign`` (module docstring). Checks every file first (one-line errors)."""
+    timings: dict[str, float] = {}
+    t_all = time.perf_counter()
+    cache_dir = Path(opts.cache_dir) if opts.cache_dir is not None else cache.default_cache_dir()
+    notes: list[str] = []
+
+    t0 = time.perf_counter()
+    say("checking the campaign's files")
+    check_files(campaign)
+    films = read_films(campaign)  # every film must read before the long stages
+    if not campaign.of_type("d1b"):
+        raise CampaignError(f"{campaign.root / 'campaign.toml'}: no disk-one-blade (d1b) test: the k-NN needs "
+                            "their frequencies")
+    outcomes = ema_stage(campaign, cache_dir, workers=opts.workers, say=say)
+    blades = blade_table(outcomes, campaign)
+    timings["ema"] = time.perf_counter() - t0
+    if any(o.picked for o in outcomes.values()):
+        notes.append("Picks files replaced the automatic pole selection for: "
+                     + ", ".join(o.test.file.name for o in outcomes.values() if o.picked) + ".")
+
+    t0 = time.perf_counter()
+    say("reduced models (from the cache; the first build takes a few minutes at the default level)")
+    models = reduced_models(campaign, cache_dir)
+    timings["rom"] = time.perf_counter() - t0
+
+    t0 = time.perf_counter()
+    known = film_patterns(films)
+    say(f"PCA sampler: {opts.n_patterns} synthetic patterns per flank from {len(films)} filmed joints")
+    sp = synthesize(films, n_patterns=opts.n_patterns, scale=opts.scale, seed=opts.seed)
+    delta_all = rom_deltas(blades.frequencies_hz, blades.deltas_pct, models.blade.frequencies_hz)
+    nd = opts.n_delta_modes
+    grid = grid_from_deltas(delta_all[:, :nd], step=opts.step_pct / 100, n_delta_modes=nd)
+    ds, sens_files = dataset_stage(models, sp, grid, opts, cache_dir, say)
+    timings["dataset"] = time.perf_counter() - t0
+
+    t0 = time.perf_counter()
+    say("bias on the filmed joints and the two-step k-NN for every joint")
+    tracker = ModeTracker.from_dataset(models.disk, models.blade, ds)
+    knn = TwoStepKNN.from_dataset(ds)
+    feat = list(ds.feature_modes)
+    d1b = {o.test.index: o.model for o in outcomes.values() if o.test.type == "d1b"}
+    joints = np.array(sorted(d1b))
+    deltas = delta_all[joints - 1, :nd]
+    ref_hz = subset_reference(ds, deltas)
+    measured = np.array([match_to_reference(d1b[j].frequency_hz, ref_hz[k]) for k, j in enumerate(joints)])
+    rom_known = {j: tracker.track(p, delta_all[j - 1]).frequencies_hz for j, p in known.items() if j in d1b}
+    meas_known = {j: measured[list(joints).index(j)] for j in rom_known}
+    if len(rom_known) < 2 and opts.bias:
+        notes.append("Fewer than 2 filmed joints have a disk-one-blade test: the model bias was not estimated.")
+    n_tracked = ds.frequencies_hz.shape[1]
+    bias = known_bias(meas_known, rom_known) if opts.bias and len(rom_known) >= 2 else np.zeros(n_tracked)
+    ratios = np.array([meas_known[j] / rom_known[j] - 1 for j in rom_known]) if rom_known else np.zeros((0, len(bias)))
+    with np.errstate(all="ignore"):
+        spread = np.nan_to_num(np.nanstd(ratios, axis=0)) if len(ratios) > 1 else np.zeros(len(bias))
+
+    def predict(features: np.ndarray) -> tuple[dict[int, ContactPattern], np.ndarray, dict[int, tuple]]:
+        ok = np.isfinite(features).all(axis=1)
+        pats, labels = {}, {}
+        match = knn.match(query_matrix(deltas, np.where(np.isfinite(features), features, 0.0)))
+        for k, j in enumerate(joints):
+            if ok[k]:
+                iL, iR = (int(x) for x in match.label[k, 0])
+                pats[int(j)] = ContactPattern(ds.patterns_L[iL], ds.patterns_R[iR])
+                labels[int(j)] = (iL, iR, float(match.distance[k, 0]))
+        return pats, match.delta, labels
+
+    f_exp = measured[:, feat]
+    missing = joints[~np.isfinite(f_exp).all(axis=1)].tolist()
+    if missing:
+        notes.append(f"Joints {missing}: a feature mode was not found in the disk-one-blade EMA within "
+                     f"{100 * MATCH_WINDOW:.0f} %; they get the baseline pattern.")
+    if len(missing) == len(joints):
+        raise IdentifyError("no disk-one-blade test has all feature modes "
+                            f"{[m + 1 for m in feat]} within {100 * MATCH_WINDOW:.0f} % of the dataset's")
+    pred_exp, step1_delta, labels_exp = predict(f_exp / (1 + bias[feat]))
+    pred_raw, _, labels_raw = predict(f_exp) if opts.bias else (pred_exp, None, labels_exp)
+    step1 = grid_error(step1_delta, deltas, opts.step_pct / 100)
+    reference = _reference_patterns(campaign)
+    pred_num, labels_num = {}, {}
+    if reference is not None:
+        f_num = np.array([tracker.track(reference[j - 1], delta_all[j - 1]).frequencies_hz[feat] for j in joints])
+        pred_num, _, labels_num = predict(f_num)
+    base = mean_known_pattern(known)
+
+    def final(pred: dict[int, ContactPattern]) -> list[ContactPattern]:
+        # the film where there is one, else the k-NN's answer, else (no usable d1b test) the baseline
+        out = []
+        for j in range(1, campaign.n_blades + 1):
+            p = known.get(j, pred.get(j))
+            out.append(base if p is None else p)
+        return out
+
+    predictions = {"experimental": labels_exp, "experimental_no_bias": labels_raw, "numerical": labels_num}
+    timings["identify"] = time.perf_counter() - t0
+
+    t0 = time.perf_counter()
+    d1b_rows = []
+    for k, j in enumerate(joints):
+        j = int(j)
+        row = {"joint": j, "source": "film" if j in known else "k-NN", "measured_hz": measured[k, feat],
+               "identified_hz": tracker.track(final(pred_exp)[j - 1], delta_all[j - 1]).frequencies_hz[feat]
+               * (1 + bias[feat])}
+        if reference is not None:
+            row["reference_hz"] = tracker.track(reference[j - 1], delta_all[j - 1]).frequencies_hz[feat]
+            row["numerical_hz"] = tracker.track(final(pred_num)[j - 1], delta_all[j - 1]).frequencies_hz[feat]
+        d1b_rows.append(row)
+
+    assembly = [o for o in outcomes.values() if o.test.type == "assembly"]
+    measured_full = assembly[0].model if assembly else None
+    n = campaign.n_blades
+    n_modes = 3 * n if measured_full is None else max(3 * n, measured_full.n_modes + n)
+    jobs = {"identified": final(pred_exp), "baseline": final({})}
+    if opts.bias:
+        jobs["identified_no_bias"] = final(pred_raw)
+    if reference is not None:
+        jobs["reference"] = list(reference)
+        jobs["numerical"] = final(pred_num)
+    full = full_stage(models, jobs, delta_all, n_modes, cache_dir, workers=opts.workers, say=say)
+    comps: dict[str, ModeComparison] = {}
+    f_max = float(measured_full.frequency_hz.max()) if measured_full is not None and measured_full.n_modes else None
+    if measured_full is not None and measured_full.n_modes:
+        top = float(min(m.frequencies_hz.max() for m in full.values()))
+        if top < f_max:
+            notes.append(f"The ROM's {n_modes} modes reach {top:.1f} Hz, below the highest measured mode "
+                         f"({f_max:.1f} Hz): the measured modes above are not compared.")
+            keep = measured_full.frequency_hz <= top
+            measured_full = ema.ModalModel(measured_full.frequency_hz[keep], measured_full.damping_ratio[keep],
+                                           measured_full.shapes[:, keep], measured_full.dofs)
+            f_max = top
+        comps["B"] = _vs_measured(measured_full, full["identified"])
+        comps["baseline_B"] = _vs_measured(measured_full, full["baseline"])
+        if opts.bias:
+            comps["B_no_bias"] = _vs_measured(measured_full, full["identified_no_bias"])
+        if reference is not None:
+            comps["C"] = _vs_measured(measured_full, full["reference"])
+    else:
+        notes.append("No full-assembly test: Cases B and C are unavailable.")
+    if reference is not None:
+        ref_modes = full["reference"] if f_max is None else _in_band(full["reference"], f_max)
+        comps["A"] = compare_modes((ref_modes.frequencies_hz, ref_modes.meas_shapes),
+                                   (full["numerical"].frequencies_hz, full["numerical"].meas_shapes))
+        comps["baseline_A"] = compare_modes((ref_modes.frequencies_hz, ref_modes.meas_shapes),
+                                            (full["baseline"].frequencies_hz, full["baseline"].meas_shapes))
+    else:
+        notes.append("Cases A and C need a reference pattern for every joint (truth/ of a virtual campaign, or "
+                     "a film of every joint); this campaign has none, so they are unavailable.")
+    cases = {"A": _case(comps.get("A")), "B": _case(comps.get("B")), "B_no_bias": _case(comps.get("B_no_bias")),
+             "C": _case(comps.get("C")),
+             "baseline": {"A": _case(comps.get("baseline_A")), "B": _case(comps.get("baseline_B"))}}
+    timings["validation"] = time.perf_counter() - t0
+    timings["total"] = time.perf_counter() - t_all
+    return RunResult(campaign, opts, outcomes, blades, models, films, known, sp, sens_files, ds, delta_all, joints,
+                     measured, bias, spread, predictions, final(pred_exp), base, reference, d1b_rows, full,
+                     cases, comps, step1, notes, timings)
+
+
+def _reference_patterns(campaign: Campaign) -> list[ContactPattern] | None:
+    """Reference patterns of every joint: ``truth/patterns.npz`` of a virtual campaign, or films of all joints."""
+    truth = campaign.truth_dir
+    if truth is not None and (truth / "patterns.npz").is_file():
+        from rom.pattern_io import load_patterns
+
+        pats = load_patterns(truth / "patterns.npz")
+        if len(pats) != campaign.n_blades:
+            raise CampaignError(f"{truth / 'patterns.npz'}: {len(pats)} patterns for {campaign.n_blades} joints")
+        return pats
+    if len(campaign.known_joints) == campaign.n_blades:
+        return [film_patterns(read_films(campaign, [j]))[j] for j in range(1, campaign.n_blades + 1)]
+    return None

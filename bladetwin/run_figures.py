@@ -1,0 +1,119 @@
+"""Figures of the run report that no library module draws (plotting only: every input is computed)."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+from matplotlib.colors import TwoSlopeNorm
+from matplotlib.figure import Figure
+
+__all__ = ["plot_blade_deltas", "plot_joint_patterns", "plot_d1b_features", "plot_bias"]
+
+
+def plot_blade_deltas(deltas_pct: np.ndarray) -> Figure:
+    """Blade mistuning deltas (Eq. 37, paper Table 2) as a heat map.
+
+    Parameters
+    ----------
+    deltas_pct : ndarray, shape (n_blades, n_modes)
+        δ of each blade and mode, %.
+    """
+    d = np.asarray(deltas_pct, float)
+    fig = Figure(figsize=(min(2 + 0.7 * d.shape[1], 12), 1.2 + 0.28 * d.shape[0]), layout="constrained")
+    ax = fig.add_subplot()
+    lim = float(np.nanmax(np.abs(d))) or 1.0
+    im = ax.imshow(d, cmap="RdBu_r", norm=TwoSlopeNorm(0.0, -lim, lim), aspect="auto")
+    ax.set_xticks(range(d.shape[1]), [f"mode {m + 1}" for m in range(d.shape[1])], rotation=45, ha="right")
+    ax.set_yticks(range(d.shape[0]), [f"blade {b + 1}" for b in range(d.shape[0])])
+    if d.size <= 400:
+        for (i, j), v in np.ndenumerate(d):
+            ax.text(j, i, f"{v:.2f}", ha="center", va="center", fontsize=7)
+    fig.colorbar(im, ax=ax, label="δ (%)")
+    ax.set_title("Blade mistuning δ (Eq. 37)")
+    return fig
+
+
+def plot_joint_patterns(patterns: Sequence, labels: Sequence[str], reference: Sequence | None = None) -> Figure:
+    """Each joint's pattern, flanks L and R side by side, with its reference pattern beside where known.
+
+    Parameters
+    ----------
+    patterns : sequence of rom.ContactPattern, length n_joints
+    labels : sequence of str, length n_joints
+        Row titles (e.g. "joint 4: SP-3 / SP-7").
+    reference : sequence of ContactPattern, optional
+    """
+    n = len(patterns)
+    cols = 2 if reference is None else 4
+    shape = np.asarray(patterns[0].L).shape
+    w = 1.2 + cols * max(1.6, 0.09 * shape[1])
+    fig = Figure(figsize=(min(w, 14), 0.4 + 0.75 * n), layout="constrained")
+    axes = fig.subplots(n, cols, squeeze=False)
+    heads = ["identified L", "identified R"] + ([] if reference is None else ["reference L", "reference R"])
+    for r in range(n):
+        grids = [patterns[r].L, patterns[r].R] + ([] if reference is None else [reference[r].L, reference[r].R])
+        for c, g in enumerate(grids):
+            ax = axes[r, c]
+            ax.imshow(np.asarray(g, float), cmap="Greys", vmin=0, vmax=1, aspect="auto", interpolation="nearest")
+            ax.set_xticks([])
+            ax.set_yticks([])
+            if r == 0:
+                ax.set_title(heads[c], fontsize=9)
+        axes[r, 0].set_ylabel(labels[r], rotation=0, ha="right", va="center", fontsize=8)
+    return fig
+
+
+def plot_d1b_features(joints: Sequence[int], measured_hz: np.ndarray, predicted_hz: np.ndarray,
+                      feature_modes: Sequence[int], *, reference_hz: np.ndarray | None = None,
+                      title: str = "") -> Figure:
+    """Disk–one-blade feature frequencies per joint: relative error of the prediction (paper Figs. 23, 27).
+
+    Parameters
+    ----------
+    joints : sequence of int, length n_joints
+    measured_hz, predicted_hz : ndarray, shape (n_joints, n_features)
+        The comparison's reference (measured, or the ROM with the reference pattern) and the prediction.
+    feature_modes : sequence of int
+        1-based mode numbers, for the legend.
+    reference_hz : ndarray, optional
+        A second prediction drawn as hollow markers (e.g. the ROM with the reference pattern).
+    """
+    fig = Figure(figsize=(8, 3.2), layout="constrained")
+    ax = fig.add_subplot()
+    x = np.asarray(joints)
+    for k, m in enumerate(feature_modes):
+        err = 100 * (predicted_hz[:, k] / measured_hz[:, k] - 1)
+        (line,) = ax.plot(x, err, "o-", ms=4, label=f"mode {m}: identified")
+        if reference_hz is not None:
+            ax.plot(x, 100 * (reference_hz[:, k] / measured_hz[:, k] - 1), "s", mfc="none",
+                    color=line.get_color(), label=f"mode {m}: reference pattern")
+    ax.axhline(0, color="0.5", lw=0.8)
+    ax.set_xlabel("joint")
+    ax.set_ylabel("Δf (%)")
+    ax.set_xticks(x)
+    ax.legend(fontsize=7, ncol=2)
+    ax.set_title(title)
+    return fig
+
+
+def plot_bias(bias_pct: np.ndarray, spread_pct: np.ndarray, feature_modes: Sequence[int]) -> Figure:
+    """The ROM's per-mode frequency bias on the filmed joints (median, with the spread between joints).
+
+    Parameters
+    ----------
+    bias_pct, spread_pct : ndarray, shape (n_modes,)
+    feature_modes : sequence of int
+        0-based feature modes (highlighted).
+    """
+    fig = Figure(figsize=(7, 2.8), layout="constrained")
+    ax = fig.add_subplot()
+    m = np.arange(1, len(bias_pct) + 1)
+    colors = ["C3" if k in set(feature_modes) else "C0" for k in range(len(bias_pct))]
+    ax.bar(m, bias_pct, yerr=spread_pct, color=colors, capsize=3)
+    ax.axhline(0, color="0.5", lw=0.8)
+    ax.set_xticks(m)
+    ax.set_xlabel("tracked disk–one-blade mode (red: feature modes)")
+    ax.set_ylabel("f_measured / f_ROM − 1 (%)")
+    ax.set_title("ROM bias on the filmed joints (median ± spread)")
+    return fig

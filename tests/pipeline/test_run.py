@@ -1,0 +1,222 @@
+"""``bladetwin run`` end to end on a small simulated campaign (issue 11), checked against the rig's truth.
+
+One module-scoped campaign (coarse mesh, 6 blades, 3×7 grid, joints 3 and 4 filmed) and one cold run; the
+other tests reuse its caches (warm runs), so the module stays around a minute on 2 cores.
+"""
+
+from __future__ import annotations
+
+import json
+import shutil
+import tomllib
+from html.parser import HTMLParser
+
+import numpy as np
+import pytest
+import tomli_w
+
+import ema
+from bladetwin.campaign import read_campaign
+from bladetwin.cli import main
+from bladetwin.pipeline import film_patterns, read_films
+from identify.validation import contact_area_fraction
+from rom.pattern_io import load_patterns
+
+SMALL = ["--level", "coarse", "--blades", "6", "--grid", "3x7", "--known", "3,4"]
+
+
+@pytest.fixture(scope="module")
+def campaign(tmp_path_factory):
+    root = tmp_path_factory.mktemp("run")
+    camp = root / "small"
+    assert main(["lab", "simulate", *SMALL, "--seed", "3", "--out", str(camp)]) == 0
+    return root, camp
+
+
+@pytest.fixture(scope="module")
+def cold(campaign):
+    root, camp = campaign
+    out = root / "out"
+    assert main(["run", str(camp), "--out", str(out), "--cache-dir", str(root / "cache"), "--quiet"]) == 0
+    return out, json.loads((out / "summary.json").read_text())
+
+
+def _edit_manifest(folder, edit) -> None:
+    path = folder / "campaign.toml"
+    doc = tomllib.loads(path.read_text())
+    edit(doc)
+    path.write_text(tomli_w.dumps(doc))
+
+
+def test_summary_has_every_field_and_the_truth_confirms_the_identification(campaign, cold):
+    _, camp = campaign
+    out, s = cold
+    for key in ("campaign", "report", "feature_modes", "step1", "joints", "cases", "timings_s"):
+        assert key in s
+    assert set(s["timings_s"]) >= {"ema", "rom", "dataset", "identify", "validation", "report", "total"}
+    assert [j["joint"] for j in s["joints"]] == list(range(1, 7))
+    assert abs(s["step1"]["max_abs_eps_pct"]) <= 50 + 1e-9  # step 1 picks the nearest grid row
+
+    truth = load_patterns(camp / "truth" / "patterns.npz")
+    pats = load_patterns(out / "identified_patterns.npz")  # the file `bladetwin rom modes --pattern` reads
+    assert len(pats) == 6
+    known = film_patterns(read_films(read_campaign(camp)))
+    for j, row in zip(range(1, 7), s["joints"], strict=True):
+        area = contact_area_fraction(np.stack([pats[j - 1].L, pats[j - 1].R]))
+        assert np.allclose(area, [row["area_fraction_L_pct"], row["area_fraction_R_pct"]])
+        ref = contact_area_fraction(np.stack([truth[j - 1].L, truth[j - 1].R]))
+        assert np.allclose(ref, [row["reference_area_L_pct"], row["reference_area_R_pct"]])
+        if j in known:  # the filmed joints keep their films
+            assert row["source"] == "film"
+            assert np.array_equal(pats[j - 1].L, known[j].L) and np.array_equal(pats[j - 1].R, known[j].R)
+        else:
+            assert row["source"] == "k-NN" and row["pattern_L"].startswith("SP-")
+
+    cases = s["cases"]
+    for key in ("A", "B", "B_no_bias", "C"):
+        assert cases[key]["n_modes"] >= 6 and 0 < cases[key]["mean_mac"] <= 1
+    # Case A (identified vs true patterns, both in the ROM) beats the baseline that gives every unfilmed joint
+    # the films' majority pattern: the identification adds something measurable against the truth.
+    assert cases["A"]["mean_abs_df_pct"] < cases["baseline"]["A"]["mean_abs_df_pct"]
+    assert cases["A"]["mean_mac"] > 0.8
+    # Case B (identified, against measurement) is within the model error (Case C) plus a small margin
+    assert cases["B"]["mean_abs_df_pct"] - cases["C"]["mean_abs_df_pct"] <= 0.2
+    # the identified ROM's disk–one-blade feature frequencies follow the measured ones within 1 %
+    assert s["d1b"]["experimental_mean_abs_df_pct"] < 1.0
+
+
+def test_outputs_report_and_uff55_are_complete(cold):
+    out, s = cold
+    for sec in s["sections"]:
+        for item in sec["figures"] + sec["tables"]:
+            assert (out / item["file"]).is_file(), item["file"]
+    modes = ema.read_modes(out / "identified_rom_modes.uff")  # a lab's correlation tool reads UFF 55
+    pairs = list(csv_rows(out / "full_pairs_B.csv"))
+    assert modes.n_modes >= len(pairs) > 0
+
+    class Page(HTMLParser):
+        imgs: list = []
+        tables = 0
+
+        def handle_starttag(self, tag, attrs):
+            if tag == "img":
+                self.imgs.append(dict(attrs)["src"])
+            self.tables += tag == "table"
+
+    page = Page()
+    page.feed((out / "report.html").read_text())
+    n_fig = sum(len(sec["figures"]) for sec in s["sections"])
+    assert len(page.imgs) == n_fig and all(src.startswith("data:image/png;base64,") for src in page.imgs)
+    assert page.tables >= sum(len(sec["tables"]) for sec in s["sections"])
+    # `bladetwin report` re-renders from the outputs alone
+    (out / "report.html").unlink()
+    assert main(["report", str(out)]) == 0 and (out / "report.html").is_file()
+
+
+def csv_rows(path):
+    import csv
+
+    with open(path) as fh:
+        yield from list(csv.reader(fh))[1:]
+
+
+def test_warm_rerun_recomputes_nothing_and_gives_the_same_answer(campaign, cold, capsys):
+    root, camp = campaign
+    out, s = cold
+    capsys.readouterr()
+    assert main(["run", str(camp), "--out", str(root / "warm"), "--cache-dir", str(root / "cache")]) == 0
+    err = capsys.readouterr().err
+    assert "EMA of" not in err and "dataset:" not in err and "full-assembly ROM:" not in err, err
+    w = json.loads((root / "warm" / "summary.json").read_text())
+    assert w["joints"] == s["joints"] and w["cases"] == s["cases"]
+
+
+def test_campaign_without_truth_reports_cases_a_and_c_unavailable(campaign, cold, tmp_path):
+    root, camp = campaign
+    lab = tmp_path / "lab"
+    shutil.copytree(camp, lab, ignore=shutil.ignore_patterns("truth"))
+    out = tmp_path / "out"
+    assert main(["run", str(lab), "--out", str(out), "--cache-dir", str(root / "cache"), "--quiet"]) == 0
+    s = json.loads((out / "summary.json").read_text())
+    assert s["cases"]["A"] is None and s["cases"]["C"] is None and s["cases"]["baseline"]["A"] is None
+    assert s["cases"]["B"]["n_modes"] > 0
+    assert any("unavailable" in n for n in s["notes"])
+    assert all(j["reference_area_L_pct"] is None for j in s["joints"])
+    html = (out / "report.html").read_text()
+    assert "unavailable" in html
+
+
+def test_a_picks_file_replaces_the_automatic_selection(campaign, cold, tmp_path):
+    root, camp = campaign
+    lab = tmp_path / "picked"
+    shutil.copytree(camp, lab)
+    c = read_campaign(lab)
+    test = c.of_type("assembly")[0]
+    frf = ema.read_uff(test.file)
+    auto = ema.fit(frf, max_order=test.max_order)
+    d = auto.diagram
+    # keep every other automatic mode: the pole of the highest order nearest to it
+    top = d.order == d.order.max()
+    chosen = []
+    for f in auto.model.frequency_hz[::2]:
+        k = np.flatnonzero(top)[np.argmin(np.abs(d.frequency_hz[top] - f))]
+        chosen.append((int(d.order[k]), float(d.frequency_hz[k])))
+    (lab / "picks").mkdir()
+    ema.save_picks(lab / "picks" / "assembly.json",
+                   ema.Picks(file="assembly/assembly.uff", method="lsrf", band_hz=None, max_order=test.max_order,
+                             picks=tuple(chosen)))
+
+    def add_picks(doc):
+        for t in doc["tests"]:
+            if t["type"] == "assembly":
+                t["picks"] = "picks/assembly.json"
+
+    _edit_manifest(lab, add_picks)
+    out = tmp_path / "out"
+    assert main(["run", str(lab), "--out", str(out), "--cache-dir", str(root / "cache"), "--quiet"]) == 0
+    s = json.loads((out / "summary.json").read_text())
+    rows = list(csv_rows(out / "assembly_modes.csv"))
+    assert len(rows) == len(chosen) < auto.model.n_modes
+    assert np.allclose([float(r[1]) for r in rows], [f for _, f in chosen], rtol=0.01)
+    assert any("Picks files" in n and "assembly.uff" in n for n in s["notes"])
+    assert "picks file assembly.json" in (out / "ema_quality.csv").read_text()
+
+
+def _swap_film(doc):
+    doc["films"][0]["file"], doc["films"][2]["file"] = doc["films"][2]["file"], doc["films"][0]["file"]
+
+
+def _blade_twice(doc):
+    doc["tests"][1]["blade"] = 1
+
+
+def _one_known(doc):
+    doc["campaign"]["known_joints"] = doc["campaign"]["known_joints"][:1]
+
+
+def _wrong_units(doc):
+    doc["campaign"]["frf_units"] = "m/s^2/N"
+
+
+def _missing_uff(doc):
+    doc["tests"][0]["file"] = "blades/nowhere.uff"
+
+
+@pytest.mark.parametrize("edit, needles", [
+    (_missing_uff, ["blades/nowhere.uff", "not found", "tests[0]"]),
+    (_blade_twice, ["blade 1 is named twice", "tests[1]"]),
+    (_swap_film, ["joint_04_L.png", "film of joint 4", "joint 3"]),
+    (_one_known, ["known_joints", "at least 2"]),
+    (_wrong_units, ["blade_01.uff", "m/s/N", "m/s^2/N"]),
+], ids=["missing-uff", "blade-twice", "film-of-wrong-joint", "one-known-joint", "units"])
+def test_bad_campaigns_fail_fast_with_one_line(campaign, tmp_path, capsys, edit, needles):
+    _, camp = campaign
+    bad = tmp_path / "bad"
+    shutil.copytree(camp, bad)
+    _edit_manifest(bad, edit)
+    capsys.readouterr()
+    assert main(["run", str(bad), "--out", str(tmp_path / "out"), "--cache-dir", str(tmp_path / "cache")]) == 2
+    err = capsys.readouterr().err
+    lines = [ln for ln in err.splitlines() if ln.startswith("bladetwin: error")]
+    assert len(lines) == 1 and all(n in lines[0] for n in needles), err
+    assert "EMA of" not in err and not (tmp_path / "cache" / "ema").exists()  # refused before any long stage
