@@ -169,25 +169,40 @@ def _save_npz(path: Path, **arrays) -> None:
         np.savez(fh, **arrays)
 
 
-def _fork_map(fn, jobs: list, workers: int, on_done: Callable[[int, int, object], None] = lambda k, n, r: None
-              ) -> list:
-    """``fn`` over ``jobs`` in ``workers`` forked processes (one by one where fork is missing or workers < 2).
+class _Background:
+    """Cache-writing jobs in ``workers`` forked processes while this process goes on (design §8.17).
 
-    Forked children share the parent's models copy-on-write; every job writes its result to the cache and
-    returns only small values, so nothing large is pickled. ``on_done(k, n, result)`` reports progress as
-    jobs finish (k of n).
+    Forked children share the parent's memory copy-on-write as it was at the fork (the models: see
+    :data:`_MODELS`); every job takes small arguments, writes its result to the cache and returns its name.
+    Without ``fork``, or with one worker, jobs run at once in this process. Progress goes to ``say`` as jobs
+    finish; :meth:`wait` re-raises a job's error here.
     """
-    out = []
-    if workers < 2 or len(jobs) < 2 or "fork" not in multiprocessing.get_all_start_methods():
-        for j in jobs:
-            out.append(fn(j))
-            on_done(len(out), len(jobs), out[-1])
-        return out
-    with multiprocessing.get_context("fork").Pool(min(workers, len(jobs))) as pool:
-        for r in pool.imap_unordered(fn, jobs, chunksize=1):
-            out.append(r)
-            on_done(len(out), len(jobs), r)
-    return out
+
+    def __init__(self, workers: int, say: Callable[[str], None]) -> None:
+        self.say = say
+        self.pending: list = []
+        fork = "fork" in multiprocessing.get_all_start_methods()
+        self.pool = multiprocessing.get_context("fork").Pool(workers) if workers >= 2 and fork else None
+
+    def submit(self, fn, job, message: str) -> None:
+        if self.pool is None:
+            fn(job)
+            self.say(message)
+        else:
+            self.pending.append(self.pool.apply_async(fn, (job,), callback=lambda _: self.say(message)))
+
+    def wait(self) -> None:
+        try:
+            for r in self.pending:
+                r.get()
+        finally:
+            self.close()
+
+    def close(self) -> None:
+        if self.pool is not None:
+            self.pool.terminate() if any(not r.ready() for r in self.pending) else self.pool.close()
+            self.pool.join()
+            self.pool = None
 
 
 def rom_modal_model(frequencies_hz: np.ndarray, meas_shapes: np.ndarray, meas_labels) -> ema.ModalModel:
@@ -208,12 +223,9 @@ def _ema_key(t: TestEntry) -> str:
     return cache.hash_inputs("ema", EMA_CACHE_VERSION, _sha(t.file), t.max_order, picks)[:32]
 
 
-_EMA_JOB: dict = {}
-
-
-def _ema_job(name: str) -> str:
+def _ema_job(job: tuple[TestEntry, Path, bool]) -> str:
     """Fit one test (automatic selection or its picks) and store the model (+ diagram figure) in the cache."""
-    t, path, plot = _EMA_JOB["tests"][name]
+    t, path, plot = job
     frf = ema.read_uff(t.file)
     if t.picks is not None:
         res = ema.fit_with_picks(frf, ema.load_picks(t.picks))
@@ -237,16 +249,11 @@ def _ema_job(name: str) -> str:
               dofs=np.asarray(m.dofs, np.int64).reshape(-1, 2), fit_quality=np.asarray(res.quality, float),
               method=np.array(res.diagram.method), scaling=np.array(m.scaling),
               picked=np.array(t.picks is not None))
-    return name
+    return path.name
 
 
-def ema_stage(campaign: Campaign, cache_dir: Path, *, workers: int = 2,
-              say: Callable[[str], None] = lambda m: None) -> dict[str, EMAOutcome]:
-    """EMA of every test of the campaign, through the EMA cache (keyed by file bytes, order and picks).
-
-    The first test of each type, and every test with picks, also gets its stabilization diagram (PNG
-    beside the cached model).
-    """
+def _ema_plan(campaign: Campaign, cache_dir: Path) -> tuple[dict, list[str]]:
+    """Each test's (entry, cache file, draw its diagram?) by name, and the names not in the cache yet."""
     folder = cache_dir / "ema"
     folder.mkdir(parents=True, exist_ok=True)
     tests, first = {}, set()
@@ -258,13 +265,15 @@ def ema_stage(campaign: Campaign, cache_dir: Path, *, workers: int = 2,
     todo = [n for n, (_, p, plot) in tests.items() if not p.is_file() or (plot and not p.with_suffix(".png").is_file())]
     # the dense full-assembly spectrum first: it is the longest job, the others fill the other worker
     todo.sort(key=lambda n: (tests[n][0].type != "assembly", n))
-    if todo:
-        say(f"EMA of {len(todo)} of {len(tests)} tests ({len(tests) - len(todo)} cached)")
-        _EMA_JOB["tests"] = tests
-        try:
-            _fork_map(_ema_job, todo, workers, lambda k, n, name: say(f"  EMA {k}/{n}: {name}"))
-        finally:
-            _EMA_JOB.clear()
+    return tests, todo
+
+
+def _ema_submit(bg: _Background, tests: dict, todo: list[str]) -> None:
+    for k, name in enumerate(todo):
+        bg.submit(_ema_job, tests[name], f"  EMA: {name} done ({len(todo)} to fit)" if k else f"  EMA: {name} done")
+
+
+def _ema_load(tests: dict, todo: list[str]) -> dict[str, EMAOutcome]:
     out = {}
     for name, (t, path, plot) in tests.items():
         with np.load(path, allow_pickle=False) as z:
@@ -273,6 +282,22 @@ def ema_stage(campaign: Campaign, cache_dir: Path, *, workers: int = 2,
             out[name] = EMAOutcome(t, m, z["fit_quality"], str(z["method"]), bool(z["picked"]),
                                    path.with_suffix(".png") if plot else None, name not in todo)
     return out
+
+
+def ema_stage(campaign: Campaign, cache_dir: Path, *, workers: int = 2,
+              say: Callable[[str], None] = lambda m: None) -> dict[str, EMAOutcome]:
+    """EMA of every test of the campaign, through the EMA cache (keyed by file bytes, order and picks).
+
+    The first test of each type, and every test with picks, also gets its stabilization diagram (PNG
+    beside the cached model).
+    """
+    tests, todo = _ema_plan(campaign, cache_dir)
+    if todo:
+        say(f"EMA of {len(todo)} of {len(tests)} tests ({len(tests) - len(todo)} cached)")
+        bg = _Background(workers, say)
+        _ema_submit(bg, tests, todo)
+        bg.wait()
+    return _ema_load(tests, todo)
 
 
 def blade_table(outcomes: dict[str, EMAOutcome], campaign: Campaign) -> BladeTests:
@@ -336,61 +361,81 @@ def _write_sensitivity(sens: Sensitivity, files: dict[str, Path]) -> None:
 
 
 # ------------------------------------------------------------------------------------------------- stage 6: full
-_FULL_JOB: dict = {}
+#: The models the forked full-assembly workers solve with (set just before their pool forks).
+_MODELS: dict = {}
 
 
-def _full_job(name: str) -> str:
+def _full_job(job: tuple) -> str:
+    """One full-assembly ROM solve (one BLAS thread when solves run side by side), stored in the cache."""
     from threadpoolctl import threadpool_limits
 
     from rom.rom_assembly import solve_full
 
-    models, patterns, deltas, n_modes, path = _FULL_JOB["jobs"][name]
-    # one MKL thread per process: the solves run side by side, one per core
-    with threadpool_limits(1 if _FULL_JOB.get("parallel") else None):
-        modes = solve_full(models.bd, models.blade, {s + 1: p for s, p in enumerate(patterns)}, deltas,
-                           n_modes=n_modes)
+    L, R, deltas, n_modes, path, single = job
+    models = _MODELS["models"]
+    with threadpool_limits(1 if single else None):
+        modes = solve_full(models.bd, models.blade, {s + 1: ContactPattern(L[s], R[s]) for s in range(len(L))},
+                           deltas, n_modes=n_modes)
     _save_npz(path, frequencies_hz=modes.frequencies_hz, meas_shapes=modes.meas_shapes,
               meas_labels=np.array(json.dumps([list(lab) for lab in modes.meas_labels])))
-    return name
+    return path.name
+
+
+def _full_path(models: Models, patterns: list[ContactPattern], deltas: np.ndarray, n_modes: int,
+               cache_dir: Path) -> Path:
+    key = cache.hash_inputs("full", FULL_CACHE_VERSION, model_key(models.disk, models.blade),
+                            np.stack([p.L for p in patterns]), np.stack([p.R for p in patterns]),
+                            np.asarray(deltas, float), int(n_modes))[:32]
+    return cache_dir / "full" / f"full-{key}.npz"
+
+
+class _FullSolves:
+    """Full-assembly ROM solves, cached by their inputs, run in the background as they are asked for."""
+
+    def __init__(self, models: Models, deltas: np.ndarray, n_modes: int, cache_dir: Path, workers: int,
+                 say: Callable[[str], None]) -> None:
+        (cache_dir / "full").mkdir(parents=True, exist_ok=True)
+        self.models, self.deltas, self.n_modes, self.cache_dir = models, deltas, n_modes, cache_dir
+        self.say, self.workers = say, workers
+        self.paths: dict[str, Path] = {}
+        self.bg: _Background | None = None
+
+    def submit(self, name: str, patterns: list[ContactPattern]) -> None:
+        path = _full_path(self.models, patterns, self.deltas, self.n_modes, self.cache_dir)
+        new = not path.is_file() and path not in self.paths.values()  # identical inputs are solved once
+        self.paths[name] = path
+        if not new:
+            return
+        if self.bg is None:
+            _MODELS["models"] = self.models  # the workers fork now and keep these
+            self.bg = _Background(self.workers, self.say)
+        self.say(f"full-assembly ROM: solving '{name}' ({self.n_modes} modes) in the background")
+        job = (np.stack([p.L for p in patterns]), np.stack([p.R for p in patterns]), self.deltas, self.n_modes,
+               path, self.bg.pool is not None)
+        self.bg.submit(_full_job, job, f"  full-assembly ROM: '{name}' solved")
+
+    def results(self) -> dict[str, FullModes]:
+        if self.bg is not None:
+            try:
+                self.bg.wait()
+            finally:
+                _MODELS.clear()
+        out = {}
+        for name, path in self.paths.items():
+            with np.load(path, allow_pickle=False) as z:
+                out[name] = FullModes(z["frequencies_hz"], z["meas_shapes"],
+                                      [tuple(lab) for lab in json.loads(str(z["meas_labels"]))])
+        return out
 
 
 def full_stage(models: Models, jobs: dict[str, list[ContactPattern]], deltas: np.ndarray, n_modes: int,
                cache_dir: Path, *, workers: int = 2, say: Callable[[str], None] = lambda m: None
                ) -> dict[str, FullModes]:
     """Full-assembly ROM modes for each named set of patterns (one per slot), cached by their inputs."""
-    folder = cache_dir / "full"
-    folder.mkdir(parents=True, exist_ok=True)
-    mk = model_key(models.disk, models.blade)
-    paths, unique = {}, {}
+    solves = _FullSolves(models, deltas, n_modes, cache_dir, workers, say)
     for name, pats in jobs.items():
-        key = cache.hash_inputs("full", FULL_CACHE_VERSION, mk, np.stack([p.L for p in pats]),
-                                np.stack([p.R for p in pats]), np.asarray(deltas, float), int(n_modes))[:32]
-        paths[name] = folder / f"full-{key}.npz"
-        unique.setdefault(paths[name], name)  # identical inputs (e.g. the same patterns with and without bias)
-    todo = [n for p, n in unique.items() if not p.is_file()]
-    if todo:
-        say(f"full-assembly ROM: {len(todo)} solve(s) of {n_modes} modes ({', '.join(todo)}), "
-            f"{min(workers, len(todo))} at a time")
-        _FULL_JOB["jobs"] = {n: (models, jobs[n], deltas, n_modes, paths[n]) for n in todo}
-        # Pairs of single-threaded solves side by side; an odd one out runs last in this process with every
-        # thread, rather than alone on one core of the pool.
-        pooled = todo[:-1] if workers == 2 and len(todo) % 2 else todo
-        try:
-            _FULL_JOB["parallel"] = workers > 1 and len(pooled) > 1
-            _fork_map(_full_job, pooled, workers,
-                      lambda k, n, name: say(f"  full-assembly solve {k}/{len(todo)}: {name}"))
-            if len(pooled) < len(todo):
-                _FULL_JOB["parallel"] = False
-                _full_job(todo[-1])
-                say(f"  full-assembly solve {len(todo)}/{len(todo)}: {todo[-1]}")
-        finally:
-            _FULL_JOB.clear()
-    out = {}
-    for name, path in paths.items():
-        with np.load(path, allow_pickle=False) as z:
-            out[name] = FullModes(z["frequencies_hz"], z["meas_shapes"],
-                                  [tuple(lab) for lab in json.loads(str(z["meas_labels"]))])
-    return out
+        solves.submit(name, pats)
+    return solves.results()
 
 
 def _case(c: ModeComparison | None) -> dict | None:
@@ -441,28 +486,63 @@ def run_campaign(campaign: Campaign, opts: RunOptions = RunOptions(),
     if not campaign.of_type("d1b"):
         raise CampaignError(f"{campaign.root / 'campaign.toml'}: no disk-one-blade (d1b) test: the k-NN needs "
                             "their frequencies")
-    outcomes = ema_stage(campaign, cache_dir, workers=opts.workers, say=say)
+    # The EMA runs in the background while this process builds the reduced models: the full-assembly EMA is
+    # one long job, so a worker would otherwise idle for most of the stage.
+    tests, todo = _ema_plan(campaign, cache_dir)
+    ema_bg = None
+    if todo:
+        say(f"EMA of {len(todo)} of {len(tests)} tests ({len(tests) - len(todo)} cached), in the background")
+        ema_bg = _Background(opts.workers, say)
+        _ema_submit(ema_bg, tests, todo)
+    try:
+        t1 = time.perf_counter()
+        say("reduced models (from the cache; the first build takes a few minutes at the default level)")
+        models = reduced_models(campaign, cache_dir)
+        timings["rom"] = time.perf_counter() - t1
+        if ema_bg is not None:
+            ema_bg.wait()
+    finally:
+        if ema_bg is not None:
+            ema_bg.close()
+    outcomes = _ema_load(tests, todo)
     blades = blade_table(outcomes, campaign)
-    timings["ema"] = time.perf_counter() - t0
+    timings["ema"] = time.perf_counter() - t0  # includes the ROM build it overlapped
     if any(o.picked for o in outcomes.values()):
         notes.append("Picks files replaced the automatic pole selection for: "
                      + ", ".join(o.test.file.name for o in outcomes.values() if o.picked) + ".")
 
     t0 = time.perf_counter()
-    say("reduced models (from the cache; the first build takes a few minutes at the default level)")
-    models = reduced_models(campaign, cache_dir)
-    timings["rom"] = time.perf_counter() - t0
-
-    t0 = time.perf_counter()
     known = film_patterns(films)
-    say(f"PCA sampler: {opts.n_patterns} synthetic patterns per flank from {len(films)} filmed joints")
-    sp = synthesize(films, n_patterns=opts.n_patterns, scale=opts.scale, seed=opts.seed)
+    base = mean_known_pattern(known)
     delta_all = rom_deltas(blades.frequencies_hz, blades.deltas_pct, models.blade.frequencies_hz)
-    nd = opts.n_delta_modes
-    grid = grid_from_deltas(delta_all[:, :nd], step=opts.step_pct / 100, n_delta_modes=nd)
-    ds, sens_files = dataset_stage(models, sp, grid, opts, cache_dir, say)
-    timings["dataset"] = time.perf_counter() - t0
+    reference = _reference_patterns(campaign)
+    assembly = [o for o in outcomes.values() if o.test.type == "assembly"]
+    measured_full = assembly[0].model if assembly else None
+    n = campaign.n_blades
+    n_modes = 3 * n if measured_full is None else max(3 * n, measured_full.n_modes + n)
+    # The solves that need no identification start now, beside the dataset build.
+    solves = _FullSolves(models, delta_all, n_modes, cache_dir, opts.workers, say)
+    try:
+        solves.submit("baseline", [known.get(j, base) for j in range(1, n + 1)])
+        if reference is not None:
+            solves.submit("reference", list(reference))
+        say(f"PCA sampler: {opts.n_patterns} synthetic patterns per flank from {len(films)} filmed joints")
+        sp = synthesize(films, n_patterns=opts.n_patterns, scale=opts.scale, seed=opts.seed)
+        nd = opts.n_delta_modes
+        grid = grid_from_deltas(delta_all[:, :nd], step=opts.step_pct / 100, n_delta_modes=nd)
+        ds, sens_files = dataset_stage(models, sp, grid, opts, cache_dir, say)
+        timings["dataset"] = time.perf_counter() - t0
+        return _identify_and_validate(campaign, opts, say, timings, t_all, notes, outcomes, blades, models, films,
+                                      known, base, sp, sens_files, ds, delta_all, reference, measured_full, solves)
+    finally:
+        if solves.bg is not None:
+            solves.bg.close()
+            _MODELS.clear()
 
+
+def _identify_and_validate(campaign, opts, say, timings, t_all, notes, outcomes, blades, models, films, known, base,
+                           sp, sens_files, ds, delta_all, reference, measured_full, solves) -> RunResult:
+    """Steps 4–6 of :func:`run_campaign` (bias, k-NN, validation), the early full solves under way."""
     t0 = time.perf_counter()
     say("bias on the filmed joints and the two-step k-NN for every joint")
     tracker = ModeTracker.from_dataset(models.disk, models.blade, ds)
@@ -470,6 +550,7 @@ def run_campaign(campaign: Campaign, opts: RunOptions = RunOptions(),
     feat = list(ds.feature_modes)
     d1b = {o.test.index: o.model for o in outcomes.values() if o.test.type == "d1b"}
     joints = np.array(sorted(d1b))
+    nd = opts.n_delta_modes
     deltas = delta_all[joints - 1, :nd]
     ref_hz = subset_reference(ds, deltas)
     measured = np.array([match_to_reference(d1b[j].frequency_hz, ref_hz[k]) for k, j in enumerate(joints)])
@@ -505,12 +586,10 @@ def run_campaign(campaign: Campaign, opts: RunOptions = RunOptions(),
     pred_exp, step1_delta, labels_exp = predict(f_exp / (1 + bias[feat]))
     pred_raw, _, labels_raw = predict(f_exp) if opts.bias else (pred_exp, None, labels_exp)
     step1 = grid_error(step1_delta, deltas, opts.step_pct / 100)
-    reference = _reference_patterns(campaign)
     pred_num, labels_num = {}, {}
     if reference is not None:
         f_num = np.array([tracker.track(reference[j - 1], delta_all[j - 1]).frequencies_hz[feat] for j in joints])
         pred_num, _, labels_num = predict(f_num)
-    base = mean_known_pattern(known)
 
     def final(pred: dict[int, ContactPattern]) -> list[ContactPattern]:
         # the film where there is one, else the k-NN's answer, else (no usable d1b test) the baseline
@@ -523,6 +602,11 @@ def run_campaign(campaign: Campaign, opts: RunOptions = RunOptions(),
     predictions = {"experimental": labels_exp, "experimental_no_bias": labels_raw, "numerical": labels_num}
     timings["identify"] = time.perf_counter() - t0
 
+    solves.submit("identified", final(pred_exp))
+    if opts.bias:
+        solves.submit("identified_no_bias", final(pred_raw))
+    if reference is not None:
+        solves.submit("numerical", final(pred_num))
     t0 = time.perf_counter()
     d1b_rows = []
     for k, j in enumerate(joints):
@@ -535,17 +619,9 @@ def run_campaign(campaign: Campaign, opts: RunOptions = RunOptions(),
             row["numerical_hz"] = tracker.track(final(pred_num)[j - 1], delta_all[j - 1]).frequencies_hz[feat]
         d1b_rows.append(row)
 
-    assembly = [o for o in outcomes.values() if o.test.type == "assembly"]
-    measured_full = assembly[0].model if assembly else None
-    n = campaign.n_blades
-    n_modes = 3 * n if measured_full is None else max(3 * n, measured_full.n_modes + n)
-    jobs = {"identified": final(pred_exp), "baseline": final({})}
-    if opts.bias:
-        jobs["identified_no_bias"] = final(pred_raw)
-    if reference is not None:
-        jobs["reference"] = list(reference)
-        jobs["numerical"] = final(pred_num)
-    full = full_stage(models, jobs, delta_all, n_modes, cache_dir, workers=opts.workers, say=say)
+    full = solves.results()
+    n_modes = solves.n_modes
+
     comps: dict[str, ModeComparison] = {}
     f_max = float(measured_full.frequency_hz.max()) if measured_full is not None and measured_full.n_modes else None
     if measured_full is not None and measured_full.n_modes:
