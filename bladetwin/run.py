@@ -13,6 +13,9 @@ Stages, each timed and each cached by the hash of its inputs (a warm re-run reco
 6. **Validation**: geometric, disk–one-blade, and the full assembly's Cases A/B/C (paper §8) beside a
    baseline that gives every unfilmed joint the majority pattern of the films.
 
+Stages overlap where they can (design §8.17): the EMA runs in forked workers while the reduced models build,
+and the full-assembly solves that need no identification start beside the dataset build.
+
 Computing lives here; :mod:`bladetwin.run_outputs` writes the tables, figures and the report.
 """
 
@@ -56,7 +59,8 @@ from .pipeline import (
     synthesize,
 )
 
-__all__ = ["RunOptions", "EMAOutcome", "FullModes", "RunResult", "run_campaign", "ema_stage", "rom_modal_model"]
+__all__ = ["RunOptions", "EMAOutcome", "FullModes", "RunResult", "run_campaign", "ema_stage", "blade_table",
+           "dataset_stage", "rom_modal_model"]
 
 #: Bump when a stage's results change for the same inputs (invalidates the stage caches).
 EMA_CACHE_VERSION = 1
@@ -181,15 +185,20 @@ class _Background:
     def __init__(self, workers: int, say: Callable[[str], None]) -> None:
         self.say = say
         self.pending: list = []
+        self.done = 0
         fork = "fork" in multiprocessing.get_all_start_methods()
         self.pool = multiprocessing.get_context("fork").Pool(workers) if workers >= 2 and fork else None
 
-    def submit(self, fn, job, message: str) -> None:
+    def _finished(self, label: str) -> None:
+        self.done += 1
+        self.say(f"  {label} ({self.done} of {len(self.pending) or self.done} done)")
+
+    def submit(self, fn, job, label: str) -> None:
         if self.pool is None:
             fn(job)
-            self.say(message)
+            self._finished(label)
         else:
-            self.pending.append(self.pool.apply_async(fn, (job,), callback=lambda _: self.say(message)))
+            self.pending.append(self.pool.apply_async(fn, (job,), callback=lambda _: self._finished(label)))
 
     def wait(self) -> None:
         try:
@@ -269,8 +278,8 @@ def _ema_plan(campaign: Campaign, cache_dir: Path) -> tuple[dict, list[str]]:
 
 
 def _ema_submit(bg: _Background, tests: dict, todo: list[str]) -> None:
-    for k, name in enumerate(todo):
-        bg.submit(_ema_job, tests[name], f"  EMA: {name} done ({len(todo)} to fit)" if k else f"  EMA: {name} done")
+    for name in todo:
+        bg.submit(_ema_job, tests[name], f"EMA {name}")
 
 
 def _ema_load(tests: dict, todo: list[str]) -> dict[str, EMAOutcome]:
@@ -409,10 +418,11 @@ class _FullSolves:
         if self.bg is None:
             _MODELS["models"] = self.models  # the workers fork now and keep these
             self.bg = _Background(self.workers, self.say)
-        self.say(f"full-assembly ROM: solving '{name}' ({self.n_modes} modes) in the background")
+        where = " in the background" if self.bg.pool is not None else ""
+        self.say(f"full-assembly ROM: solving '{name}' ({self.n_modes} modes){where}")
         job = (np.stack([p.L for p in patterns]), np.stack([p.R for p in patterns]), self.deltas, self.n_modes,
                path, self.bg.pool is not None)
-        self.bg.submit(_full_job, job, f"  full-assembly ROM: '{name}' solved")
+        self.bg.submit(_full_job, job, f"full-assembly ROM '{name}' solved")
 
     def results(self) -> dict[str, FullModes]:
         if self.bg is not None:
@@ -428,16 +438,6 @@ class _FullSolves:
         return out
 
 
-def full_stage(models: Models, jobs: dict[str, list[ContactPattern]], deltas: np.ndarray, n_modes: int,
-               cache_dir: Path, *, workers: int = 2, say: Callable[[str], None] = lambda m: None
-               ) -> dict[str, FullModes]:
-    """Full-assembly ROM modes for each named set of patterns (one per slot), cached by their inputs."""
-    solves = _FullSolves(models, deltas, n_modes, cache_dir, workers, say)
-    for name, pats in jobs.items():
-        solves.submit(name, pats)
-    return solves.results()
-
-
 def _case(c: ModeComparison | None) -> dict | None:
     """Table 8's figures of one comparison: mean |Δf| (%), mean MAC, pairs, and the reference modes offered."""
     if c is None or not c.pairs.size:
@@ -448,7 +448,7 @@ def _case(c: ModeComparison | None) -> dict | None:
 
 #: Pairing of a ROM's modes with measured ones (Cases B, C): MAC-maximizing, within ±5 %, MAC ≥ 0.3, as the
 #: rig's own Case C check (``lab.model_error``). Measured shapes in dense families can be poor; a mode without
-#: a credible partner stays unpaired (counted in ``n_measured``) rather than being forced onto a distant one.
+#: a credible partner stays unpaired (counted in ``n_reference_modes``) rather than being forced onto a distant one.
 MEASURED_WINDOW, MEASURED_MAC_MIN = 0.05, 0.3
 
 
