@@ -15,6 +15,7 @@ they can be run one by one; each prints a table, or JSON with ``--json``.
 from __future__ import annotations
 
 import json
+import shutil
 import sys
 from pathlib import Path
 
@@ -64,6 +65,10 @@ def register(sub) -> None:
     p.add_argument("--step", type=float, default=0.5, help="δ grid step in %% (default: %(default)s)")
     p.add_argument("--delta-modes", type=int, default=3, help="blade modes on the δ grid (default: %(default)s)")
     p.add_argument("--features", type=int, default=3, help="number of feature modes (default: %(default)s)")
+    p.add_argument("--workers", type=int, default=None, metavar="N",
+                   help="build on a local Dask cluster of N worker processes (default: in process)")
+    p.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                   help="build on an existing Dask cluster, e.g. tcp://host:8786 (the parts stay here)")
     p.set_defaults(func=_cmd_dataset)
 
     p = isub.add_parser("predict", help="two-step weighted k-NN: a contact pattern for every joint (§6.4)")
@@ -222,7 +227,8 @@ def _cmd_sensitivity(args) -> int:
 def _cmd_dataset(args) -> int:
     from bladetwin.campaign import read_campaign
     from bladetwin.pipeline import blade_tests, query_deltas, reduced_models
-    from identify.dataset import build_dataset, grid_from_deltas, save_dataset
+    from identify.dataset import grid_from_deltas, save_dataset
+    from identify.dataset_parts import build_dataset_parts
 
     campaign = read_campaign(args.campaign)
     out = _out(args, campaign)
@@ -236,11 +242,16 @@ def _cmd_dataset(args) -> int:
     grid = grid_from_deltas(query_deltas(blades, models, args.delta_modes), step=args.step / 100,
                             n_delta_modes=args.delta_modes)
     n = len(grid) ** args.delta_modes * len(sp.L) * len(sp.R)
+    if args.workers is not None and args.workers < 1:
+        raise ValueError(f"--workers {args.workers}: expected a positive number of Dask workers")
     with step(f"dataset: {len(grid)}^{args.delta_modes} δ rows × {len(sp.L) * len(sp.R)} pairs = {n} samples",
               not args.quiet):
-        ds = build_dataset(models.disk, models.blade, sp.L, sp.R, grid, n_delta_modes=args.delta_modes,
-                           n_features=args.features, progress=not args.quiet)
+        # resumable: each finished pattern pair is a Parquet part in dataset.parts/ until the table is written
+        ds = build_dataset_parts(models.disk, models.blade, sp.L, sp.R, grid, out / "dataset.parts",
+                                 n_delta_modes=args.delta_modes, n_features=args.features, workers=args.workers,
+                                 scheduler=args.scheduler, say=say)
     path = save_dataset(ds, out / "dataset.parquet")
+    shutil.rmtree(out / "dataset.parts", ignore_errors=True)
     info = {"dataset": str(path), "n_samples": int(len(ds.deltas)), "delta_grid_pct": (100 * ds.delta_grid).tolist(),
             "feature_modes": [m + 1 for m in ds.feature_modes], "weights": ds.weights.tolist(),
             "n_fallbacks": int(np.sum(ds.fallback)) if ds.fallback is not None else 0, "model_key": ds.model_key}

@@ -39,6 +39,10 @@ def register(sub) -> None:
     p.add_argument("--no-bias", action="store_true", help="don't remove the ROM's bias estimated on the filmed joints")
     p.add_argument("--workers", type=int, default=2, help="processes for the EMA and full-assembly solves "
                    "(default: %(default)s)")
+    p.add_argument("--dask-workers", type=int, default=None, metavar="N",
+                   help="build the dataset on a local Dask cluster of N worker processes (default: in process)")
+    p.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                   help="build the dataset on an existing Dask cluster, e.g. tcp://host:8786")
     p.add_argument("--json", action="store_true", help="print summary.json instead of the short summary")
     p.add_argument("--quiet", action="store_true", help="no progress on stderr")
     p.set_defaults(func=_cmd_run)
@@ -47,7 +51,8 @@ def register(sub) -> None:
 def _check_args(args) -> None:
     for name, v, ok in (("--n", args.n, args.n >= 2), ("--scale", args.scale, args.scale > 0),
                         ("--step", args.step, args.step > 0), ("--features", args.features, args.features >= 1),
-                        ("--workers", args.workers, args.workers >= 1)):
+                        ("--workers", args.workers, args.workers >= 1),
+                        ("--dask-workers", args.dask_workers, args.dask_workers is None or args.dask_workers >= 1)):
         if not ok:
             raise ValueError(f"{name} {v}: expected a positive value" + (" ≥ 2" if name == "--n" else ""))
 
@@ -75,7 +80,7 @@ def _cmd_run(args) -> int:
     out = Path(args.out) if args.out else Path("out") / campaign.name
     opts = RunOptions(cache_dir=Path(args.cache_dir) if args.cache_dir else None, n_patterns=args.n, scale=args.scale,
                       seed=args.seed, step_pct=args.step, n_features=args.features, bias=not args.no_bias,
-                      workers=args.workers)
+                      workers=args.workers, dask_workers=args.dask_workers, scheduler=args.scheduler)
     res = run_campaign(campaign, opts, say)
     t_rep = time.perf_counter()
     say(f"writing tables, figures and the report to {out}")

@@ -24,6 +24,7 @@ from __future__ import annotations
 import hashlib
 import json
 import multiprocessing
+import shutil
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -32,7 +33,8 @@ from pathlib import Path
 import numpy as np
 
 import ema
-from identify.dataset import Dataset, build_dataset, grid_from_deltas, load_dataset, save_dataset
+from identify.dataset import Dataset, grid_from_deltas, load_dataset, save_dataset
+from identify.dataset_parts import build_dataset_parts
 from identify.errors import IdentifyError
 from identify.knn import TwoStepKNN, query_matrix
 from identify.sensitivity import Sensitivity, model_key, sensitivity
@@ -89,6 +91,9 @@ class RunOptions:
         Remove the ROM's per-mode bias estimated on the filmed joints (step 4).
     workers : int
         Processes for the EMA and the full-assembly solves (each single-threaded).
+    dask_workers, scheduler :
+        Build the dataset on a local Dask cluster of that many workers, or on the Dask scheduler at that
+        address (``identify.dataset_parts``); default in this process. The table is the same either way.
     """
 
     cache_dir: Path | None = None
@@ -100,6 +105,8 @@ class RunOptions:
     n_delta_modes: int = 3
     bias: bool = True
     workers: int = 2
+    dask_workers: int | None = None
+    scheduler: str | None = None
 
 
 @dataclass(frozen=True, eq=False)
@@ -346,9 +353,13 @@ def dataset_stage(models: Models, synthetic, grid: np.ndarray, opts: RunOptions,
     n = len(grid) ** opts.n_delta_modes * len(synthetic.L) * len(synthetic.R)
     say(f"dataset: {len(grid)}^{opts.n_delta_modes} δ rows × {len(synthetic.L) * len(synthetic.R)} pairs = {n} "
         "samples (reanalysis)")
-    ds = build_dataset(models.disk, models.blade, synthetic.L, synthetic.R, grid, n_delta_modes=opts.n_delta_modes,
-                       sensitivity=sens, n_features=opts.n_features, progress=False)
+    # In Parquet parts beside the cache entry: a build that is interrupted resumes where it stopped.
+    parts = folder / f"dataset-{key}.parts"
+    ds = build_dataset_parts(models.disk, models.blade, synthetic.L, synthetic.R, grid, parts,
+                             n_delta_modes=opts.n_delta_modes, sensitivity=sens, n_features=opts.n_features,
+                             workers=opts.dask_workers, scheduler=opts.scheduler, say=say)
     save_dataset(ds, path)
+    shutil.rmtree(parts, ignore_errors=True)  # the table holds it all now
     return ds, files
 
 

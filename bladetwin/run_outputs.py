@@ -69,6 +69,7 @@ def write_outputs(res: RunResult, out: Path, *, command: str = "bladetwin run") 
     c = res.campaign
     feat = list(res.dataset.feature_modes)
     sections = []
+    notes_extra: list[str] = []
 
     # ---------------------------------------------------------------- EMA
     ema_rows, figs = [], []
@@ -98,9 +99,13 @@ def write_outputs(res: RunResult, out: Path, *, command: str = "bladetwin run") 
               {"file": t_bf, "caption": "Blade natural frequencies (Hz), modes tracked by MAC."}]
     disk = [o for o in res.ema.values() if o.test.type == "disk"]
     if disk:
-        dm = ema.disk_modes(disk[0].model)
-        ema.write_table(dm, out / "disk_modes.csv")
-        tables.append({"file": "disk_modes.csv", "caption": "Disk modes with their nodal diameters."})
+        try:
+            dm = ema.disk_modes(disk[0].model)
+        except ValueError as exc:  # e.g. disk points that are not one per sector: the run's answer stands
+            notes_extra.append(f"Disk modes: nodal diameters not assigned ({exc}).")
+        else:
+            ema.write_table(dm, out / "disk_modes.csv")
+            tables.append({"file": "disk_modes.csv", "caption": "Disk modes with their nodal diameters."})
     # Table 3: each joint's EMA frequencies matched one-to-one to the modes the dataset tracks (its blade
     # points are numbered per joint, so the tests share only the disk points and cannot be paired by MAC).
     mh = res.measured_hz
@@ -299,6 +304,7 @@ def write_outputs(res: RunResult, out: Path, *, command: str = "bladetwin run") 
                               "(UFF 55, rig DOF labels)."], "figures": figs, "tables": tables})
 
     summary = summary_of(res, command)
+    summary["notes"] = summary["notes"] + notes_extra
     summary.update(_clean({"joints": joints_summary, "sections": sections, "geometric": geo_summary,
                            "d1b": d1b_summary}))
     summary["files"] = {"patterns": "identified_patterns.npz", "rom_modes_uff": "identified_rom_modes.uff"}

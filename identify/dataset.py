@@ -69,7 +69,12 @@ from .sensitivity import (
 
 __all__ = [
     "Dataset",
+    "DatasetPlan",
+    "PairResult",
     "build_dataset",
+    "plan_dataset",
+    "solve_pair",
+    "assemble_dataset",
     "grid_from_deltas",
     "save_dataset",
     "load_dataset",
@@ -371,6 +376,88 @@ def build_dataset(
         Tracked modes with MAC < 0.5 against their reference (pair or δ = 0).
     """
     t_start = time.perf_counter()
+    plan = plan_dataset(disk, blade, patterns_L, patterns_R, delta_grid, n_delta_modes=n_delta_modes,
+                        n_modes=n_modes, sensitivity=sensitivity, reference=reference, n_extra=n_extra,
+                        formulation=formulation, tol=tol, method=method)
+    results = {}
+    bar = tqdm(total=plan.n_samples, desc="dataset", unit="sample", file=sys.stderr, disable=not progress,
+               smoothing=0.05)
+    try:
+        for pair in plan.pairs:
+            results[pair] = solve_pair(plan, *pair)
+            bar.update(plan.n_rows)
+    finally:
+        bar.close()
+    return assemble_dataset(plan, results, sensitivity=sensitivity, n_features=n_features, t_start=t_start)
+
+
+@dataclass(frozen=True, eq=False)
+class DatasetPlan:
+    """A checked dataset build, split into independent pattern pairs (issue 12: chunked, resumable builds).
+
+    Made by :func:`plan_dataset`; :func:`solve_pair` computes one pair from it alone, and
+    :func:`assemble_dataset` puts the pairs together. The reference pair's δ = 0 modes (``ref_shapes`` on the
+    ``common`` coordinates, with the mass ``W``) are in it, so every pair tracks against the same modes
+    whichever process solves it.
+    """
+
+    disk: CraigBamptonModel
+    blade: RubinModel
+    PL: np.ndarray
+    PR: np.ndarray
+    grid: np.ndarray
+    rows_d: np.ndarray
+    n_delta_modes: int
+    n_modes: int
+    n_extra: int
+    formulation: str
+    tol: float
+    method: str
+    reference: tuple[int, int]
+    key: str
+    idx: np.ndarray
+    w2: np.ndarray
+    common: np.ndarray
+    W: np.ndarray
+    ref_shapes: np.ndarray
+
+    @property
+    def n_rows(self) -> int:
+        return len(self.rows_d)
+
+    @property
+    def pairs(self) -> list[tuple[int, int]]:
+        """Every (i_L, i_R), the reference pair first (the serial build's order)."""
+        every = [(i, j) for i in range(len(self.PL)) for j in range(len(self.PR))]
+        return [self.reference] + [p for p in every if p != self.reference]
+
+    @property
+    def n_samples(self) -> int:
+        return len(self.PL) * len(self.PR) * self.n_rows
+
+
+@dataclass(frozen=True, eq=False)
+class PairResult:
+    """One pattern pair's samples: tracked frequencies (Hz, shape (n_rows, n_modes)), error bounds, min MAC and
+    fallback flags (shape (n_rows,)), and its δ = 0 modes against the reference (``freq0``, ``mac_ref``,
+    ``rank_ref``, shape (n_modes,))."""
+
+    i: int
+    j: int
+    frequencies_hz: np.ndarray
+    bound: np.ndarray
+    mac_min: np.ndarray
+    fallback: np.ndarray
+    freq0: np.ndarray
+    mac_ref: np.ndarray
+    rank_ref: np.ndarray
+
+
+def plan_dataset(disk, blade, patterns_L, patterns_R, delta_grid, *, n_delta_modes: int = 3, n_modes: int = 10,
+                 sensitivity: Sensitivity | None = None, reference: tuple[int, int] | None = None,
+                 n_extra: int = 4, formulation: str = "exact", tol: float = DEFAULT_TOL, method: str = "auto"
+                 ) -> DatasetPlan:
+    """Check a build's inputs and solve its reference pair's δ = 0 modes (arguments as :func:`build_dataset`)."""
     _check_formulation(formulation)
     grid = _grid(blade)
     PL = check_patterns(patterns_L, "patterns_L", grid)
@@ -390,50 +477,69 @@ def build_dataset(
         ref = sensitivity.reference
     else:
         ref = _check_reference(reference, PL, PR)
-    n_cand = n_modes + n_extra
+    ref = (int(ref[0]), int(ref[1]))
     idx = update_index(disk, blade, n_delta_modes)
     w2 = blade.omega2_tuned[:n_delta_modes]
     rows_d = np.array(list(itertools.product(g, repeat=int(n_delta_modes))))
-    n_rows = len(rows_d)
-    pairs = [(i, j) for i in range(len(PL)) for j in range(len(PR))]
+    with single_thread_blas():
+        K0, M = _pencil_checked(disk, blade, PL[ref[0]], PR[ref[1]], ref[0], ref[1], formulation)
+        _check_update_index(disk, blade, PL[ref[0]], PR[ref[1]], formulation, K0, idx)
+        common = _common_coords(K0.shape[0], disk, blade)
+        W = M[np.ix_(common, common)]
+        base = _ritz(K0, M, idx, w2, n_modes + n_extra, method, tol, n_modes, ref)
+    return DatasetPlan(disk, blade, PL, PR, g, rows_d, int(n_delta_modes), int(n_modes), int(n_extra), formulation,
+                       float(tol), method, ref, key, idx, w2, common, W, base.shapes0[common, :n_modes])
+
+
+def _ritz(K0, M, idx, w2, n_cand: int, method: str, tol: float, n_modes: int, pair: tuple[int, int]) -> RitzModel:
+    try:
+        return ritz_model(K0, M, idx, w2, n_cand, method=method, basis_tol=0.1 * tol, n_check=n_modes)
+    except ValueError as exc:
+        raise IdentifyError(f"pattern pair (L {pair[0]}, R {pair[1]}) (0-based): reanalysis failed: {exc}") from None
+
+
+def solve_pair(plan: DatasetPlan, i: int, j: int) -> PairResult:
+    """Every δ row of one pattern pair (reanalysis, direct fallback), tracked against the reference modes."""
+    # One BLAS thread: thin products with ~1,500² matrices are memory-bound, and threaded BLAS on a loaded
+    # 2-core machine was up to 40× slower (rom.modal.single_thread_blas). It also makes a pair's numbers the
+    # same in any process, so every executor gives the same table.
+    with single_thread_blas():
+        K0, M = _pencil_checked(plan.disk, plan.blade, plan.PL[i], plan.PR[j], i, j, plan.formulation)
+        base = _ritz(K0, M, plan.idx, plan.w2, plan.n_modes + plan.n_extra, plan.method, plan.tol, plan.n_modes,
+                     (i, j))
+        rows, vals = assign_modes(mac_matrix(plan.ref_shapes, base.shapes0[plan.common], plan.W))
+        n = plan.n_rows
+        freq, bound = np.empty((n, plan.n_modes)), np.empty(n)
+        mac_min, fallback = np.empty(n), np.zeros(n, bool)
+        for b0 in range(0, n, _BATCH):
+            Db = plan.rows_d[b0 : b0 + _BATCH]
+            sl = slice(b0, b0 + len(Db))
+            freq[sl], bound[sl], mac_min[sl], fallback[sl] = _solve_rows(base, Db, rows, plan.tol, K0, M, plan.idx,
+                                                                         plan.w2)
+    return PairResult(int(i), int(j), freq, bound, mac_min, fallback, base.frequencies0_hz[rows], vals,
+                      np.asarray(rows, np.int64))
+
+
+def assemble_dataset(plan: DatasetPlan, results: dict, *, sensitivity: Sensitivity | None = None,
+                     n_features: int = 3, t_start: float | None = None) -> Dataset:
+    """The :class:`Dataset` of a plan from every pair's :class:`PairResult` (keyed by (i_L, i_R))."""
+    nL, nR, n_rows, n_modes = len(plan.PL), len(plan.PR), plan.n_rows, plan.n_modes
+    missing = [p for p in ((i, j) for i in range(nL) for j in range(nR)) if p not in results]
+    if missing:
+        raise IdentifyError(f"{len(missing)} pattern pair(s) not computed, first (L, R) = {missing[0]}")
+    pairs = [(i, j) for i in range(nL) for j in range(nR)]
     n_s = len(pairs) * n_rows
     freq = np.empty((n_s, n_modes))
-    bound = np.empty(n_s)
-    fallback = np.zeros(n_s, bool)
-    mac_min = np.empty(n_s)
-    freq0 = np.empty((len(PL), len(PR), n_modes))
-    mac_ref = np.empty((len(PL), len(PR), n_modes))
-    rank_ref = np.empty((len(PL), len(PR), n_modes), np.int64)
-    W = ref_shapes = common = None
-    order = [ref] + [p for p in pairs if p != ref]
-    bar = tqdm(total=n_s, desc="dataset", unit="sample", file=sys.stderr, disable=not progress, smoothing=0.05)
-    try:
-        # One BLAS thread: thin products with ~1,500² matrices are memory-bound, and threaded BLAS on a
-        # loaded 2-core machine was up to 40× slower (rom.modal.single_thread_blas).
-        with single_thread_blas():
-            for i, j in order:
-                K0, M = _pencil_checked(disk, blade, PL[i], PR[j], i, j, formulation)
-                if W is None:  # the reference pair comes first
-                    _check_update_index(disk, blade, PL[i], PR[j], formulation, K0, idx)
-                    common = _common_coords(K0.shape[0], disk, blade)
-                    W = M[np.ix_(common, common)]
-                try:
-                    base = ritz_model(K0, M, idx, w2, n_cand, method=method, basis_tol=0.1 * tol, n_check=n_modes)
-                except ValueError as exc:
-                    raise IdentifyError(f"pattern pair (L {i}, R {j}) (0-based): reanalysis failed: {exc}") from None
-                if ref_shapes is None:
-                    ref_shapes = base.shapes0[common, :n_modes]
-                rows, vals = assign_modes(mac_matrix(ref_shapes, base.shapes0[common], W))
-                f0 = base.frequencies0_hz
-                freq0[i, j], mac_ref[i, j], rank_ref[i, j] = f0[rows], vals, rows
-                start = (i * len(PR) + j) * n_rows
-                for b0 in range(0, n_rows, _BATCH):
-                    Db = rows_d[b0 : b0 + _BATCH]
-                    sl = slice(start + b0, start + b0 + len(Db))
-                    freq[sl], bound[sl], mac_min[sl], fallback[sl] = _solve_rows(base, Db, rows, tol, K0, M, idx, w2)
-                    bar.update(len(Db))
-    finally:
-        bar.close()
+    bound, mac_min, fallback = np.empty(n_s), np.empty(n_s), np.zeros(n_s, bool)
+    freq0 = np.empty((nL, nR, n_modes))
+    mac_ref = np.empty((nL, nR, n_modes))
+    rank_ref = np.empty((nL, nR, n_modes), np.int64)
+    for k, (i, j) in enumerate(pairs):
+        r = results[i, j]
+        sl = slice(k * n_rows, (k + 1) * n_rows)
+        freq[sl], bound[sl], mac_min[sl], fallback[sl] = r.frequencies_hz, r.bound, r.mac_min, r.fallback
+        freq0[i, j], mac_ref[i, j], rank_ref[i, j] = r.freq0, r.mac_ref, r.rank_ref
+    rows_d = plan.rows_d
     _warn_low_mac(mac_ref, "the pattern pairs (δ = 0, against the reference pair)")
     if (mac_min < MAC_WARN).any():
         k = int(np.argmin(mac_min))
@@ -450,25 +556,25 @@ def build_dataset(
         _, _, _, modes, weights = summarize(freq0, n_features)
     n_fb = int(fallback.sum())
     meta = {
-        "reference": [int(ref[0]), int(ref[1])],
+        "reference": [int(plan.reference[0]), int(plan.reference[1])],
         "n_modes": int(n_modes),
-        "n_extra": int(n_extra),
-        "formulation": formulation,
-        "tol": float(tol),
+        "n_extra": int(plan.n_extra),
+        "formulation": plan.formulation,
+        "tol": float(plan.tol),
         "n_fallbacks": n_fb,
         "max_error_bound": float(np.nanmax(bound)) if n_fb < n_s else 0.0,
-        "build_s": time.perf_counter() - t_start,
+        "build_s": time.perf_counter() - t_start if t_start is not None else None,
     }
     return Dataset(
         deltas=np.tile(rows_d, (len(pairs), 1)),
         pair=np.repeat(np.array(pairs, np.int64), n_rows, axis=0),
         frequencies_hz=freq,
-        patterns_L=PL,
-        patterns_R=PR,
+        patterns_L=plan.PL,
+        patterns_R=plan.PR,
         feature_modes=modes,
         weights=weights,
-        delta_grid=g,
-        model_key=key,
+        delta_grid=plan.grid,
+        model_key=plan.key,
         error_bound=bound,
         fallback=fallback,
         mac_min=mac_min,

@@ -1,0 +1,110 @@
+"""Resumable dataset builds in Parquet parts (issue 12): in process, on a 2-worker Dask LocalCluster, and killed
+(SIGKILL) mid-build then resumed, all give the table of the serial ``build_dataset``, bit for bit.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from identify.dataset import build_dataset
+from identify.dataset_parts import MANIFEST, build_dataset_parts
+from identify.errors import IdentifyError
+
+from ..rom.rom_models import blade, disk_cb
+
+REPO = Path(__file__).resolve().parents[2]
+GRID = (3, 7)
+DELTA_GRID = [-0.005, 0.0, 0.01]
+N_SIDE = 5  # 25 pattern pairs: long enough to be killed in the middle
+
+
+def patterns(seed: int = 11):
+    rng = np.random.default_rng(seed)
+    PL = rng.random((N_SIDE, *GRID)) < 0.6
+    PR = rng.random((N_SIDE, *GRID)) < 0.6
+    PL[:, 0, 0] = PR[:, 0, 0] = True  # never an empty flank
+    return PL, PR
+
+
+# The child loads the parent's reduced models from files: a reduction recomputed in another process may differ
+# in the last bits (threaded BLAS), which would make it another model, hence another build.
+SCRIPT = f"""
+import sys
+sys.path.insert(0, {str(REPO)!r})
+from tests.identify.test_dataset_parts import patterns, DELTA_GRID
+from identify.dataset_parts import build_dataset_parts
+from rom.cache import load_model
+PL, PR = patterns()
+build_dataset_parts(load_model(sys.argv[2]), load_model(sys.argv[3]), PL, PR, DELTA_GRID, sys.argv[1])
+"""
+
+
+def _same(a, b) -> None:
+    assert np.array_equal(a.frequencies_hz, b.frequencies_hz)
+    assert np.array_equal(a.error_bound, b.error_bound, equal_nan=True)
+    assert np.array_equal(a.fallback, b.fallback) and np.array_equal(a.mac_min, b.mac_min)
+    assert np.array_equal(a.deltas, b.deltas) and np.array_equal(a.pair, b.pair)
+    assert a.feature_modes == b.feature_modes and np.array_equal(a.weights, b.weights)
+
+
+@pytest.fixture(scope="module")
+def serial():
+    PL, PR = patterns()
+    return build_dataset(disk_cb(), blade(), PL, PR, DELTA_GRID, progress=False)
+
+
+def test_in_process_parts_equal_the_serial_build_and_a_rerun_reads_them(serial, tmp_path):
+    PL, PR = patterns()
+    folder = tmp_path / "a"
+    ds = build_dataset_parts(disk_cb(), blade(), PL, PR, DELTA_GRID, folder)
+    _same(ds, serial)
+    assert len(list(folder.glob("part-*.parquet"))) == N_SIDE**2 and (folder / MANIFEST).is_file()
+    said = []
+    again = build_dataset_parts(disk_cb(), blade(), PL, PR, DELTA_GRID, folder, say=said.append)
+    _same(again, serial)
+    assert "0 to compute" in said[0]
+    # a different build (another δ grid) may not mix its parts with these
+    with pytest.raises(IdentifyError, match="another dataset build"):
+        build_dataset_parts(disk_cb(), blade(), PL, PR, [0.0, 0.01], folder)
+
+
+def test_a_two_worker_local_cluster_gives_the_same_table(serial, tmp_path):
+    pytest.importorskip("distributed")
+    PL, PR = patterns()
+    ds = build_dataset_parts(disk_cb(), blade(), PL, PR, DELTA_GRID, tmp_path / "b", workers=2)
+    _same(ds, serial)
+
+
+def test_a_build_killed_mid_way_resumes_without_recomputing_finished_parts(serial, tmp_path):
+    from rom.cache import save_model
+
+    folder = tmp_path / "c"
+    models = [str(save_model(tmp_path / name, m)) for name, m in (("disk.npz", disk_cb()), ("blade.npz", blade()))]
+    proc = subprocess.Popen([sys.executable, "-c", SCRIPT, str(folder), *models], cwd=REPO,
+                            env={**os.environ, "MPLBACKEND": "Agg"})
+    try:
+        deadline = time.monotonic() + 240
+        while not list(folder.glob("part-*.parquet")):
+            assert proc.poll() is None, "the build ended before writing a part"
+            assert time.monotonic() < deadline, "no part written in time"
+            time.sleep(0.005)
+        proc.send_signal(signal.SIGKILL)
+    finally:
+        proc.wait()
+    finished = {p.name: p.stat().st_mtime_ns for p in folder.glob("part-*.parquet")}
+    assert 0 < len(finished) < N_SIDE**2, len(finished)  # killed in the middle
+    PL, PR = patterns()
+    said = []
+    ds = build_dataset_parts(disk_cb(), blade(), PL, PR, DELTA_GRID, folder, say=said.append)
+    assert f"{len(finished)} pairs already in" in said[0]
+    _same(ds, serial)
+    # the finished parts were read, not recomputed
+    assert all(folder.joinpath(n).stat().st_mtime_ns == t for n, t in finished.items())
