@@ -39,8 +39,8 @@ _CASE_COLUMNS = (
     ("C", "Case C", "ROM with the reference patterns vs the measured assembly"),
 )
 _BASELINE_COLUMNS = (
-    ("A", "Baseline A", "as Case A, every joint given the mean known pattern"),
-    ("B", "Baseline B", "as Case B, every joint given the mean known pattern"),
+    ("A", "Baseline A", "as Case A, every unfilmed joint given the films' majority pattern"),
+    ("B", "Baseline B", "as Case B, every unfilmed joint given the films' majority pattern"),
 )
 _PAPER_COLUMNS = (("A", "Paper A"), ("B", "Paper B"), ("C", "Paper C"))
 _METRIC_ROWS = (

@@ -43,6 +43,31 @@ NORMALIZE = ("subset", "dataset", None)
 _ALGORITHM = "kd_tree"
 
 
+def _unique_rows(A: np.ndarray) -> tuple[np.ndarray, np.ndarray, list[np.ndarray]]:
+    """``np.unique(A, axis=0, return_inverse=True)`` (rows in lexicographic order), and each column's values.
+
+    Through one integer key per row (each column's rank, mixed radix, the first column most significant),
+    so a million rows take a few 1-D sorts instead of one sort of row records (≈ 10× faster, measured on
+    1.76 M samples). 1-D input: plain ``np.unique``.
+    """
+    if A.ndim == 1:
+        u, inv = np.unique(A, return_inverse=True)
+        return u, inv.reshape(-1), [u]
+    columns, ranks = [], []
+    for c in A.T:
+        u, inv = np.unique(c, return_inverse=True)
+        columns.append(u)
+        ranks.append(inv.reshape(-1).astype(np.int64))
+    if np.prod([float(u.size) for u in columns]) >= 2.0**62:  # the key would overflow: sort the records
+        u, inv = np.unique(A, axis=0, return_inverse=True)
+        return u, inv.reshape(-1), columns
+    key = np.zeros(A.shape[0], np.int64)
+    for u, r in zip(columns, ranks, strict=True):
+        key = key * u.size + r
+    _, first, inverse = np.unique(key, return_index=True, return_inverse=True)
+    return A[first], inverse.reshape(-1), columns
+
+
 class ExtrapolationWarning(UserWarning):
     """A query's blade delta lies beyond the dataset's δ grid by more than half a grid step."""
 
@@ -108,16 +133,16 @@ class TwoStepKNN(ClassifierMixin, BaseEstimator):
         with :class:`ExtrapolationWarning`.
     weights_ : ndarray of float64, shape (n_features,)
         The resolved weights of Eq. 33.
-    feature_mean_, feature_scale_ : ndarray of float64, shape (n_subsets, n_features)
-        μ and σ of Eq. 39 per subset (rows equal for ``normalize="dataset"``).
     sample_class_ : ndarray of int, shape (n_samples,)
         Row of ``classes_`` of each training sample.
     subset_samples_ : tuple of ndarray of int
         Training-sample indices of each subset.
     nn_delta_ : NearestNeighbors or None
         Step-1 index over ``subset_deltas_`` (None without δ columns).
-    nn_features_ : list of NearestNeighbors
-        Step-2 index of each subset, over its normalised features scaled by ``sqrt(weights_)``.
+
+    Each subset's μ and σ of Eq. 39 and its step-2 index (over its normalised features scaled by
+    ``sqrt(weights_)``) are built the first time a query lands in it (:meth:`subset_normalization`): a
+    million-sample dataset has some 10⁴ subsets, and a query touches a handful.
 
     Notes
     -----
@@ -194,18 +219,15 @@ class TwoStepKNN(ClassifierMixin, BaseEstimator):
         nd, k = self._check_params(X.shape[1])
         D, F = X[:, :nd], X[:, nd:]
 
-        if y.ndim == 2:
-            self.classes_, codes = np.unique(y, axis=0, return_inverse=True)
-        else:
-            self.classes_, codes = np.unique(y, return_inverse=True)
+        self.classes_, codes, _ = _unique_rows(y)
         self.sample_class_ = codes.reshape(-1)
 
         if nd:
-            self.subset_deltas_, inverse = np.unique(D, axis=0, return_inverse=True)
+            self.subset_deltas_, inverse, columns = _unique_rows(D)
             self.subset_of_sample_ = inverse.reshape(-1)
             lo, hi = np.empty(nd), np.empty(nd)
             for m in range(nd):
-                u = np.unique(D[:, m])
+                u = columns[m]
                 # Half the grid step at each end of the range (0 for a single value: any other value extrapolates).
                 lo[m] = u[0] - (0.5 * (u[1] - u[0]) if u.size > 1 else 0.0)
                 hi[m] = u[-1] + (0.5 * (u[-1] - u[-2]) if u.size > 1 else 0.0)
@@ -216,9 +238,13 @@ class TwoStepKNN(ClassifierMixin, BaseEstimator):
             self.subset_of_sample_ = np.zeros(X.shape[0], dtype=int)
             self.delta_bounds_ = np.zeros((2, 0))
             self.nn_delta_ = None
-        groups = [np.flatnonzero(self.subset_of_sample_ == g) for g in range(self.subset_deltas_.shape[0])]
-        small = min(range(len(groups)), key=lambda g: groups[g].size)
-        n_small = groups[small].size
+        n_sub = self.subset_deltas_.shape[0]
+        # Samples of each subset in ascending order, in O(n log n) (a stable sort, then cuts at the counts).
+        order = np.argsort(self.subset_of_sample_, kind="stable")
+        counts = np.bincount(self.subset_of_sample_, minlength=n_sub)
+        groups = np.split(order, np.cumsum(counts)[:-1])
+        small = int(np.argmin(counts))
+        n_small = int(counts[small])
         if n_small < k:
             raise IdentifyError(
                 f"n_neighbors={k} exceeds the {n_small} sample(s) of δ subset "
@@ -226,21 +252,36 @@ class TwoStepKNN(ClassifierMixin, BaseEstimator):
             )
 
         self.weights_ = self._resolve_weights(F, groups)
-        n_sub, nf = len(groups), F.shape[1]
-        self.feature_mean_, self.feature_scale_ = np.zeros((n_sub, nf)), np.ones((n_sub, nf))
+        nf = F.shape[1]
+        self._features = F
+        self._global_norm = (np.zeros(nf), np.ones(nf))
         if self.normalize == "dataset":
             sc = StandardScaler().fit(F)
-            self.feature_mean_[:], self.feature_scale_[:] = sc.mean_, sc.scale_
-        sqrt_w = np.sqrt(self.weights_)
-        self.nn_features_ = []
-        for g, rows in enumerate(groups):
-            if self.normalize == "subset":
-                sc = StandardScaler().fit(F[rows])  # Eq. 39 inside the subset; σ = 0 → 1
-                self.feature_mean_[g], self.feature_scale_[g] = sc.mean_, sc.scale_
-            Z = (F[rows] - self.feature_mean_[g]) / self.feature_scale_[g] * sqrt_w
-            self.nn_features_.append(NearestNeighbors(algorithm=_ALGORITHM).fit(Z))
+            self._global_norm = (sc.mean_, sc.scale_)
+        self._subset_models: dict[int, tuple] = {}
+        self._smallest_subset = n_small
         self.subset_samples_ = tuple(groups)
         return self
+
+    def subset_normalization(self, g: int) -> tuple[np.ndarray, np.ndarray]:
+        """μ and σ of Eq. 39 (shape (n_features,) each) in δ subset ``g`` (global ones for ``normalize="dataset"``)."""
+        return self._subset_model(int(g))[:2]
+
+    def _subset_model(self, g: int) -> tuple[np.ndarray, np.ndarray, NearestNeighbors]:
+        """(μ, σ, step-2 index) of subset ``g``, built on first use and kept."""
+        hit = self._subset_models.get(g)
+        if hit is None:
+            rows = self.subset_samples_[g]
+            F = self._features[rows]
+            if self.normalize == "subset":
+                sc = StandardScaler().fit(F)  # Eq. 39 inside the subset; σ = 0 → 1
+                mean, scale = sc.mean_, sc.scale_
+            else:
+                mean, scale = self._global_norm
+            Z = (F - mean) / scale * np.sqrt(self.weights_)
+            hit = (mean, scale, NearestNeighbors(algorithm=_ALGORITHM).fit(Z))
+            self._subset_models[g] = hit
+        return hit
 
     # ----------------------------------------------------------------------------------------- query
     def _warn_extrapolation(self, D: np.ndarray) -> None:
@@ -277,7 +318,7 @@ class TwoStepKNN(ClassifierMixin, BaseEstimator):
         k = self.n_neighbors if n_neighbors is None else n_neighbors
         if not isinstance(k, Integral) or isinstance(k, bool) or k < 1:
             raise IdentifyError(f"n_neighbors={k!r}: expected an integer ≥ 1")
-        smallest = min(s.size for s in self.subset_samples_)
+        smallest = self._smallest_subset
         if k > smallest:
             raise IdentifyError(f"n_neighbors={k} exceeds the smallest δ subset ({smallest} samples)")
         nd = self.subset_deltas_.shape[1]
@@ -293,8 +334,9 @@ class TwoStepKNN(ClassifierMixin, BaseEstimator):
         sqrt_w = np.sqrt(self.weights_)
         for g in np.unique(subset):
             q = np.flatnonzero(subset == g)
-            Z = (F[q] - self.feature_mean_[g]) / self.feature_scale_[g] * sqrt_w
-            dist, loc = self.nn_features_[g].kneighbors(Z, k)
+            mean, scale, nn = self._subset_model(int(g))
+            Z = (F[q] - mean) / scale * sqrt_w
+            dist, loc = nn.kneighbors(Z, k)
             index[q], distance[q] = self.subset_samples_[g][loc], dist
         return TwoStepMatch(
             delta=self.subset_deltas_[subset].copy(), subset=subset, index=index, distance=distance,
