@@ -78,13 +78,12 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--json", default=None, help="also write the figures to this JSON file")
     args = ap.parse_args(argv)
 
-    from dataset import known_maps  # benchmarks/dataset.py: the same patterns and deltas
+    from dataset import check_against_direct, known_maps  # benchmarks/dataset.py: same patterns, deltas, check
 
     from identify.dataset import grid_from_deltas, load_dataset, save_dataset
     from identify.dataset_parts import build_dataset_parts
     from identify.knn import TwoStepKNN, query_matrix
     from identify.sampler import sample_patterns
-    from rom import ContactPattern, solve_d1b
     from rom.academic import AcademicParams, build_bladed_disk
     from rom.cache import cached_reduce_blade, cached_reduce_disk
 
@@ -150,18 +149,8 @@ def main(argv: list[str] | None = None) -> int:
         query_ok = tuple(int(x) for x in m.label[0, 0]) == tuple(int(x) for x in loaded.pair[s])
         file_mb = path.stat().st_size / 1e6
 
-    n_modes, n_extra = ds.frequencies_hz.shape[1], int(ds.meta["n_extra"])
     picks = rng.choice(ds.n_samples, size=min(args.n_direct, ds.n_samples), replace=False)
-    times, errs = [], []
-    for k in picks:
-        i_L, i_R = ds.pair[k]
-        t = time.perf_counter()
-        ref = solve_d1b(disk, blade, ContactPattern(pats.L[i_L], pats.R[i_R]), n_modes=n_modes + n_extra,
-                        delta=ds.deltas[k])
-        times.append(time.perf_counter() - t)
-        f = ds.frequencies_hz[k]
-        near = ref.frequencies_hz[np.argmin(np.abs(f[:, None] - ref.frequencies_hz[None, :]), axis=1)]
-        errs.append(np.abs(f / near - 1).max())
+    times, errs = check_against_direct(ds, disk, blade, pats, picks)
     direct_s = float(np.median(times))
     out = {
         "level": args.level, "step_pct": args.step, "n_samples": int(ds.n_samples), "n_delta_rows": int(n_rows),
