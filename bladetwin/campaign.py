@@ -272,7 +272,7 @@ def check_files(campaign: Campaign, say=lambda msg: None) -> None:
     for t in campaign.tests:
         say(f"checking {t.file.name}")
         frf = ema.read_uff(t.file)
-        if t.units is not None and frf.units.replace(" ", "") != t.units.replace(" ", ""):
+        if t.units is not None and (frf.units or "").replace(" ", "") != t.units.replace(" ", ""):
             raise CampaignError(f"{t.file}: FRF units {frf.units!r}, but {manifest.name} says {t.units!r} "
                                 "(units / frf_units): convert the file or correct the manifest")
         if t.picks is not None:
