@@ -271,12 +271,12 @@ def _predict(campaign, out: Path, args, say):
         blade_tests,
         d1b_tests,
         film_patterns,
+        filmed_frequencies,
         known_bias,
-        match_to_reference,
+        measured_tracked,
         predict_joints,
         read_films,
         reduced_models,
-        subset_reference,
     )
     from rom.mistuning import rom_deltas
 
@@ -291,15 +291,12 @@ def _predict(campaign, out: Path, args, say):
     joints = np.array(sorted(d1b))
     delta_all = rom_deltas(blades.frequencies_hz, blades.deltas_pct, models.blade.frequencies_hz)
     deltas = delta_all[joints - 1, :n_dm]
-    ref = subset_reference(ds, deltas)
-    measured = np.array([match_to_reference(d1b[j].frequency_hz, ref[k]) for k, j in enumerate(joints)])
+    measured = measured_tracked(ds, d1b, joints, deltas)
     bias = np.zeros(ds.frequencies_hz.shape[1])
     if not args.no_bias:
         with step("ROM bias on the filmed joints", not quiet):
             known = film_patterns(read_films(campaign))
-            rom_hz = {j: tr.track(p, delta_all[j - 1]).frequencies_hz for j, p in known.items() if j in d1b}
-            meas_hz = {j: measured[list(joints).index(j)] for j in rom_hz}
-            bias = known_bias(meas_hz, rom_hz)
+            bias = known_bias(*filmed_frequencies(tr, known, delta_all, joints, measured))
     feats = measured[:, list(ds.feature_modes)] / (1 + bias[list(ds.feature_modes)])
     bad = ~np.isfinite(feats).all(axis=1)
     if bad.all():

@@ -29,7 +29,8 @@ from .campaign import Campaign, CampaignError
 __all__ = [
     "MATCH_WINDOW", "Models", "BladeTests", "Prediction", "model_params", "reduced_models", "read_films",
     "film_patterns", "synthesize", "blade_tests", "d1b_tests", "match_to_reference", "subset_reference",
-    "known_bias", "predict_joints", "mean_known_pattern", "query_deltas", "tracker",
+    "known_bias", "measured_tracked", "filmed_frequencies", "bias_spread", "predict_joints", "mean_known_pattern",
+    "query_deltas", "tracker",
 ]
 
 #: Window of the frequency matching between measured and tracked modes (relative).
@@ -163,6 +164,47 @@ def subset_reference(dataset: Dataset, deltas: np.ndarray) -> np.ndarray:
         near = rows[np.argmin(np.linalg.norm(rows - d, axis=1))]
         out[k] = dataset.frequencies_hz[np.all(dataset.deltas == near, axis=1)].mean(axis=0)
     return out
+
+
+def measured_tracked(dataset: Dataset, d1b: dict[int, ema.ModalModel], joints, deltas) -> np.ndarray:
+    """Each joint's EMA frequencies matched to the dataset's tracked modes (Hz; NaN: not found).
+
+    Parameters
+    ----------
+    dataset : Dataset
+    d1b : dict joint → ema.ModalModel
+        The disk–one-blade EMA of each joint.
+    joints : array_like of int, shape (n_joints,)
+    deltas : ndarray, shape (n_joints, n_delta_modes)
+        Each joint's δ (relative): the dataset's δ row nearest to it gives the expected frequencies.
+
+    Returns
+    -------
+    ndarray, shape (n_joints, n_tracked)
+    """
+    ref = subset_reference(dataset, deltas)
+    return np.array([match_to_reference(d1b[int(j)].frequency_hz, ref[k]) for k, j in enumerate(joints)])
+
+
+def filmed_frequencies(tracker: ModeTracker, known: dict[int, ContactPattern], delta_all: np.ndarray, joints,
+                       measured: np.ndarray) -> tuple[dict[int, np.ndarray], dict[int, np.ndarray]]:
+    """(measured, ROM) tracked frequencies (Hz) of each filmed joint with a d1b test: :func:`known_bias`'s inputs.
+
+    ``delta_all`` (shape (n_blades, m)) holds every blade's δ on the ROM's modes; ``measured`` is
+    :func:`measured_tracked` of ``joints``.
+    """
+    row = {int(j): k for k, j in enumerate(joints)}
+    rom_hz = {j: tracker.track(p, delta_all[j - 1]).frequencies_hz for j, p in known.items() if j in row}
+    return {j: measured[row[j]] for j in rom_hz}, rom_hz
+
+
+def bias_spread(measured_hz: dict[int, np.ndarray], rom_hz: dict[int, np.ndarray]) -> np.ndarray:
+    """Spread (std over the filmed joints) of f_measured / f_ROM − 1 per mode; 0 with fewer than 2 joints."""
+    ratios = np.array([measured_hz[j] / rom_hz[j] - 1 for j in measured_hz])
+    if len(ratios) < 2:
+        return np.zeros(ratios.shape[1] if ratios.ndim == 2 else 0)
+    with np.errstate(all="ignore"):
+        return np.nan_to_num(np.nanstd(ratios, axis=0))
 
 
 def known_bias(measured_hz: dict[int, np.ndarray], rom_hz: dict[int, np.ndarray]) -> np.ndarray:

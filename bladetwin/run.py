@@ -40,7 +40,7 @@ from identify.knn import TwoStepKNN, query_matrix
 from identify.sensitivity import Sensitivity, model_key, sensitivity
 from identify.tracking import ModeTracker
 from identify.validation import GridError, ModeComparison, compare_modes, grid_error
-from lab.rig import dof_label
+from lab.rig import rom_modal_model
 from rom import cache
 from rom.contact import ContactPattern
 from rom.fileio import atomic_path
@@ -51,18 +51,19 @@ from .pipeline import (
     MATCH_WINDOW,
     BladeTests,
     Models,
+    bias_spread,
     film_patterns,
+    filmed_frequencies,
     known_bias,
-    match_to_reference,
     mean_known_pattern,
+    measured_tracked,
     read_films,
     reduced_models,
-    subset_reference,
     synthesize,
 )
 
 __all__ = ["RunOptions", "EMAOutcome", "FullModes", "RunResult", "run_campaign", "ema_stage", "blade_table",
-           "dataset_stage", "rom_modal_model"]
+           "dataset_stage"]
 
 #: Bump when a stage's results change for the same inputs (invalidates the stage caches).
 EMA_CACHE_VERSION = 1
@@ -219,14 +220,6 @@ class _Background:
             self.pool.terminate() if any(not r.ready() for r in self.pending) else self.pool.close()
             self.pool.join()
             self.pool = None
-
-
-def rom_modal_model(frequencies_hz: np.ndarray, meas_shapes: np.ndarray, meas_labels) -> ema.ModalModel:
-    """ROM modes as an undamped :class:`ema.ModalModel` on the rig's UFF DOF labels (``lab.rig.dof_label``)."""
-    dofs = tuple(dof_label(tuple(lab)) for lab in meas_labels)
-    n = np.size(frequencies_hz)
-    return ema.ModalModel(np.asarray(frequencies_hz, float), np.zeros(n), np.asarray(meas_shapes).astype(complex),
-                          dofs)
 
 
 # ------------------------------------------------------------------------------------------------- stage 1: EMA
@@ -467,7 +460,7 @@ def _vs_measured(measured: ema.ModalModel, rom: FullModes) -> ModeComparison:
     """A ROM's modes against the measured ones, on their common DOFs (shapes sign-aware through the MAC)."""
     from ema.mac import common_dofs
 
-    model = rom_modal_model(rom.frequencies_hz, rom.meas_shapes, rom.meas_labels)
+    model = rom_modal_model(rom)
     pa, pb, _ = common_dofs(measured, model)
     if pa.shape[0] < 2:
         raise CampaignError("the full-assembly test and the ROM share fewer than 2 measurement DOFs: the node "
@@ -563,17 +556,13 @@ def _identify_and_validate(campaign, opts, say, timings, t_all, notes, outcomes,
     joints = np.array(sorted(d1b))
     nd = opts.n_delta_modes
     deltas = delta_all[joints - 1, :nd]
-    ref_hz = subset_reference(ds, deltas)
-    measured = np.array([match_to_reference(d1b[j].frequency_hz, ref_hz[k]) for k, j in enumerate(joints)])
-    rom_known = {j: tracker.track(p, delta_all[j - 1]).frequencies_hz for j, p in known.items() if j in d1b}
-    meas_known = {j: measured[list(joints).index(j)] for j in rom_known}
+    measured = measured_tracked(ds, d1b, joints, deltas)
+    meas_known, rom_known = filmed_frequencies(tracker, known, delta_all, joints, measured)
     if len(rom_known) < 2 and opts.bias:
         notes.append("Fewer than 2 filmed joints have a disk-one-blade test: the model bias was not estimated.")
     n_tracked = ds.frequencies_hz.shape[1]
     bias = known_bias(meas_known, rom_known) if opts.bias and len(rom_known) >= 2 else np.zeros(n_tracked)
-    ratios = np.array([meas_known[j] / rom_known[j] - 1 for j in rom_known]) if rom_known else np.zeros((0, len(bias)))
-    with np.errstate(all="ignore"):
-        spread = np.nan_to_num(np.nanstd(ratios, axis=0)) if len(ratios) > 1 else np.zeros(len(bias))
+    spread = bias_spread(meas_known, rom_known) if rom_known else np.zeros(n_tracked)
 
     def predict(features: np.ndarray) -> tuple[dict[int, ContactPattern], np.ndarray, dict[int, tuple]]:
         ok = np.isfinite(features).all(axis=1)
@@ -613,21 +602,23 @@ def _identify_and_validate(campaign, opts, say, timings, t_all, notes, outcomes,
     predictions = {"experimental": labels_exp, "experimental_no_bias": labels_raw, "numerical": labels_num}
     timings["identify"] = time.perf_counter() - t0
 
-    solves.submit("identified", final(pred_exp))
+    identified, numerical = final(pred_exp), final(pred_num)
+    solves.submit("identified", identified)
     if opts.bias:
         solves.submit("identified_no_bias", final(pred_raw))
     if reference is not None:
-        solves.submit("numerical", final(pred_num))
+        solves.submit("numerical", numerical)
     t0 = time.perf_counter()
     d1b_rows = []
     for k, j in enumerate(joints):
         j = int(j)
+        # a filmed joint's identified pattern is its film: its ROM frequencies were tracked for the bias already
+        f_id = rom_known[j] if j in rom_known else tracker.track(identified[j - 1], delta_all[j - 1]).frequencies_hz
         row = {"joint": j, "source": "film" if j in known else "k-NN", "measured_hz": measured[k, feat],
-               "identified_hz": tracker.track(final(pred_exp)[j - 1], delta_all[j - 1]).frequencies_hz[feat]
-               * (1 + bias[feat])}
+               "identified_hz": f_id[feat] * (1 + bias[feat])}
         if reference is not None:
             row["reference_hz"] = tracker.track(reference[j - 1], delta_all[j - 1]).frequencies_hz[feat]
-            row["numerical_hz"] = tracker.track(final(pred_num)[j - 1], delta_all[j - 1]).frequencies_hz[feat]
+            row["numerical_hz"] = tracker.track(numerical[j - 1], delta_all[j - 1]).frequencies_hz[feat]
         d1b_rows.append(row)
 
     full = solves.results()
@@ -667,7 +658,7 @@ def _identify_and_validate(campaign, opts, say, timings, t_all, notes, outcomes,
     timings["validation"] = time.perf_counter() - t0
     timings["total"] = time.perf_counter() - t_all
     return RunResult(campaign, opts, outcomes, blades, models, films, known, sp, sens_files, ds, delta_all, joints,
-                     measured, bias, spread, predictions, final(pred_exp), base, reference, d1b_rows, full,
+                     measured, bias, spread, predictions, identified, base, reference, d1b_rows, full,
                      cases, comps, step1, notes, timings)
 
 

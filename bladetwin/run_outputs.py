@@ -25,10 +25,11 @@ from identify.plots import (
     plot_synthetic_patterns,
 )
 from identify.validation import contact_area_fraction, geometric_validation
+from lab.rig import rom_modal_model
 from rom.pattern_io import save_patterns
 
 from .pipeline import MATCH_WINDOW
-from .run import PAPER_TABLE8, RunResult, rom_modal_model
+from .run import PAPER_TABLE8, RunResult
 from .run_figures import plot_bias, plot_blade_deltas, plot_d1b_features, plot_joint_patterns
 from .util import atomic_savefig, atomic_write_text
 
@@ -291,9 +292,7 @@ def write_outputs(res: RunResult, out: Path, *, command: str = "bladetwin run") 
     tables.append({"file": _csv(out / "table8.csv", ["case", "mean |Δf| (%)", "mean MAC", "modes", "paper |Δf| (%)",
                                                      "paper MAC"], t8),
                    "caption": "Paper Table 8 with the baseline rows: the mean known pattern at every unfilmed joint."})
-    mf = res.full["identified"]
-    ema.write_modes(out / "identified_rom_modes.uff",
-                    rom_modal_model(mf.frequencies_hz, mf.meas_shapes, mf.meas_labels),
+    ema.write_modes(out / "identified_rom_modes.uff", rom_modal_model(res.full["identified"]),
                     id1=f"bladetwin identified ROM, campaign {c.name}")
     sections.append({"id": "full", "title": "Full bladed disk: Cases A, B, C (Table 8)",
                      "text": ["Case A: ROM with patterns identified from the numerical input against the ROM with the "

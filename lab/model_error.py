@@ -26,7 +26,7 @@ from rom.contact import ContactPattern
 from rom.mistuning import rom_deltas
 from rom.rom_assembly import solve_d1b, solve_full
 
-from .rig import dof_label
+from .rig import rom_modal_model
 
 __all__ = ["ModelError", "case_c", "rom_deltas"]  # rom_deltas lives in rom.mistuning
 
@@ -62,13 +62,6 @@ class ModelError:
                     "mean_abs_df_pct": float(100 * np.nanmean(np.abs(self.d1b_rel_err))),
                     "mean_mac": float(np.nanmean(self.d1b_mac))},
         }
-
-
-def _rom_model(modes) -> ema.ModalModel:
-    """ROM modes as an :class:`ema.ModalModel` on the rig's UFF DOF labels (undamped, real shapes)."""
-    dofs = tuple(dof_label(lab) for lab in modes.meas_labels)
-    n = modes.frequencies_hz.size
-    return ema.ModalModel(modes.frequencies_hz, np.zeros(n), modes.meas_shapes.astype(complex), dofs)
 
 
 def _pair(measured: ema.ModalModel, model: ema.ModalModel, n_first: int | None = None, by: str = "mac"):
@@ -135,7 +128,7 @@ def case_c(
         say(f"disk-one-blade {s}")
         measured = _ema(root, t)
         rom_modes = solve_d1b(cb, blade, patterns[s - 1], s, n_modes=2 * n_d1b_modes + 6, delta=delta[s - 1])
-        i, _, rel, mac = _pair(measured, _rom_model(rom_modes), n_d1b_modes, by="frequency")
+        i, _, rel, mac = _pair(measured, rom_modal_model(rom_modes), n_d1b_modes, by="frequency")
         d1b_err[s - 1, i] = rel  # (f_ROM − f_EMA) / f_EMA
         d1b_mac[s - 1, i] = mac
 
@@ -150,5 +143,5 @@ def case_c(
         if rom_modes.frequencies_hz[-1] >= 1.05 * measured.frequency_hz.max() or n_rom > 4 * measured.n_modes:
             break
         n_rom += params.n_blades
-    _, _, rel, mac = _pair(measured, _rom_model(rom_modes))
+    _, _, rel, mac = _pair(measured, rom_modal_model(rom_modes))
     return ModelError(d1b_err, d1b_mac, rel, mac, measured.n_modes)
