@@ -28,7 +28,7 @@ import numpy as np
 
 from .component import Component
 from .modal import DenseModes, dense_modes
-from .solver import available_backends, factorize, solve_modes
+from .solver import available_backends, factorize, solve_modes_factored
 
 __all__ = ["CraigBamptonModel", "craig_bampton", "reduce_disk", "disk_boundary_dofs", "DEFAULT_N_CB_MODES"]
 
@@ -181,7 +181,7 @@ def craig_bampton(
     output_dofs: np.ndarray | None = None,
     boundary_rotations: np.ndarray | None = None,
     keep_basis: bool = False,
-    block_size: int = 256,
+    block_size: int = 64,
     backend: str = "auto",
     meta: dict | None = None,
 ) -> CraigBamptonModel:
@@ -203,7 +203,8 @@ def craig_bampton(
     keep_basis : bool
         Keep Φ and Ψ (dense, n_e × (n_k + n_b)) so :meth:`CraigBamptonModel.reconstruct` works.
     block_size : int
-        Right-hand sides per block for the constraint-mode solves.
+        Right-hand sides per block for the constraint-mode solves (64: Pardiso's cost per vector has levelled
+        off there, and the three (n_e, 64) work arrays stay near 0.3 GB for the default disk).
     backend : str
         Factorization backend (see :func:`rom.solver.factorize`).
 
@@ -232,41 +233,52 @@ def craig_bampton(
     Kee, Keb, Kbb = K[e][:, e].tocsr(), K[e][:, b].tocsr(), K[b][:, b].toarray()
     Mee, Meb, Mbb = M[e][:, e].tocsr(), M[e][:, b].tocsr(), M[b][:, b].toarray()
 
-    # Fixed-interface normal modes Φ_ke (Eq. 3): boundary clamped, no rigid-body modes.
-    t0 = time.perf_counter()
-    sol = solve_modes(Kee, Mee, int(n_modes), backend=backend, max_rigid=0)
-    Phi = sol.shapes
-    Lambda = sol.omega2
-    log.info("craig_bampton: %d fixed-interface modes in %.1f s", n_modes, time.perf_counter() - t0)
-    t0 = time.perf_counter()
-
-    # Constraint modes Ψ_be = −K_ee⁻¹ K_eb (Eq. 3): one factorization, blocks of right-hand sides.
-    # Many right-hand sides: Pardiso's blocked solve wins even below the size where SuperLU is the default.
+    # One factorization of K_ee serves the fixed-interface modes (shift-invert at σ = 0: with the boundary
+    # clamped K_ee is positive definite) and the constraint modes. Many right-hand sides: Pardiso's blocked
+    # solve wins even below the size where SuperLU is the default.
     multi = "pardiso" if backend == "auto" and b.size >= 64 and "pardiso" in available_backends() else backend
+    t0 = time.perf_counter()
     fac = factorize(Kee, multi)
     try:
-        Psi = np.empty((e.size, b.size))
+        # Fixed-interface normal modes Φ_ke (Eq. 3): boundary clamped, no rigid-body modes.
+        sol = solve_modes_factored(Kee, Mee, int(n_modes), fac)
+        Phi = sol.shapes
+        Lambda = sol.omega2
+        log.info("craig_bampton: %d fixed-interface modes in %.1f s", n_modes, time.perf_counter() - t0)
+        t0 = time.perf_counter()
+        # Constraint modes Ψ_be = −K_ee⁻¹ K_eb (Eq. 3) and the blocks of Eq. 6, one block of boundary DOFs at
+        # a time: κ_bb = K_bb + K_be Ψ, μ_be = Ψᵀ M_ee Φ + M_be Φ (stored n_b × n_k), and
+        # μ_bb = Ψᵀ W + M_be Ψ + M_bb with W = M_ee Ψ + M_eb. Since Ψᵀ = −K_be K_ee⁻¹, the product Ψᵀ W_j is
+        # −K_be (K_ee⁻¹ W_j): a second block solve and a sparse product instead of the dense Ψᵀ W_j over all of
+        # Ψ. So Ψ (171 k × 1 302 doubles, 1.8 GB for a default slot) is never held whole unless it is kept,
+        # and the 0.6 TFlop product disappears.
+        kappa = np.empty((b.size, b.size))
+        mu_be = np.empty((b.size, Phi.shape[1]))
+        mu_bb = np.empty((b.size, b.size))
+        out = np.zeros(0, np.int64) if output_dofs is None else np.asarray(output_dofs, dtype=np.int64).ravel()
+        pos_e = np.full(n, -1)
+        pos_e[e] = np.arange(e.size)
+        out_e = np.flatnonzero(pos_e[out] >= 0)  # output rows that are excess DOFs
+        Psi_out = np.empty((out_e.size, b.size))
+        Psi_kept = np.empty((e.size, b.size)) if keep_basis else None
+        Kbe = Keb.T.tocsr()
         for j0 in range(0, b.size, block_size):
             j1 = min(j0 + block_size, b.size)
-            Psi[:, j0:j1] = -np.asarray(fac.solve(Keb[:, j0:j1].toarray())).reshape(e.size, j1 - j0)
+            Psi_j = -np.asarray(fac.solve(Keb[:, j0:j1].toarray())).reshape(e.size, j1 - j0)
+            W = Mee @ Psi_j + Meb[:, j0:j1]  # (n_e, bs)
+            Y = np.asarray(fac.solve(W)).reshape(e.size, j1 - j0)
+            kappa[:, j0:j1] = Kbb[:, j0:j1] + Kbe @ Psi_j
+            mu_be[j0:j1] = W.T @ Phi
+            mu_bb[:, j0:j1] = -(Kbe @ Y) + Meb.T @ Psi_j + Mbb[:, j0:j1]
+            Psi_out[:, j0:j1] = Psi_j[pos_e[out[out_e]]]
+            if Psi_kept is not None:
+                Psi_kept[:, j0:j1] = Psi_j
     finally:
         fac.free()
-    log.info("craig_bampton: n_e=%d, n_b=%d, n_k=%d (%.1f–%.1f Hz); constraint modes in %.1f s", e.size, b.size,
-             n_modes, sol.frequencies_hz[0], sol.frequencies_hz[-1], time.perf_counter() - t0)
-    t0 = time.perf_counter()
-
-    # Eq. 6: κ_bb = K_bb + K_be Ψ; μ_be = Ψᵀ M_ee Φ + M_be Φ (stored as n_b × n_k); μ_bb.
-    kappa = Kbb + Keb.T @ Psi
-    mu_be = np.empty((b.size, Phi.shape[1]))
-    mu_bb = np.empty((b.size, b.size))
-    for j0 in range(0, b.size, block_size):
-        j1 = min(j0 + block_size, b.size)
-        W = Mee @ Psi[:, j0:j1] + Meb[:, j0:j1]  # (n_e, bs)
-        mu_be[j0:j1] = W.T @ Phi
-        mu_bb[:, j0:j1] = Psi.T @ W + Meb.T @ Psi[:, j0:j1] + Mbb[:, j0:j1]
     kappa = 0.5 * (kappa + kappa.T)
     mu_bb = 0.5 * (mu_bb + mu_bb.T)
-    log.info("craig_bampton: reduced blocks (Eq. 6) in %.1f s", time.perf_counter() - t0)
+    log.info("craig_bampton: n_e=%d, n_b=%d, n_k=%d (%.1f–%.1f Hz); constraint modes and Eq. 6 blocks in %.1f s",
+             e.size, b.size, n_modes, sol.frequencies_hz[0], sol.frequencies_hz[-1], time.perf_counter() - t0)
 
     # Express the boundary coordinates in the given frames: x_phys = T x_b, T = blockdiag(R_j).
     R = boundary_rotations
@@ -274,23 +286,17 @@ def craig_bampton(
         kappa = _rotate(R, _rotate(R, kappa, True).T, True).T
         mu_bb = _rotate(R, _rotate(R, mu_bb, True).T, True).T
         mu_be = _rotate(R, mu_be, True)
-        Psi = _rotate(R, Psi.T, True).T
 
-    # Output rows of R_CB (Eq. 3).
-    out = np.zeros(0, np.int64) if output_dofs is None else np.asarray(output_dofs, dtype=np.int64).ravel()
-    pos_e = np.full(n, -1)
-    pos_e[e] = np.arange(e.size)
+    # Output rows of R_CB (Eq. 3), with the boundary columns in the boundary frames.
     pos_b = np.full(n, -1)
     pos_b[b] = np.arange(b.size)
     basis_out = np.zeros((out.size, Phi.shape[1] + b.size))
-    for r, d in enumerate(out):
-        if pos_e[d] >= 0:
-            basis_out[r, : Phi.shape[1]] = Phi[pos_e[d]]
-            basis_out[r, Phi.shape[1] :] = Psi[pos_e[d]]
-        else:
-            unit = np.zeros(b.size)
-            unit[pos_b[d]] = 1.0
-            basis_out[r, Phi.shape[1] :] = _rotate(R, unit[:, None], True)[:, 0]
+    basis_out[out_e, : Phi.shape[1]] = Phi[pos_e[out[out_e]]]
+    basis_out[out_e, Phi.shape[1] :] = _rotate(R, Psi_out.T, True).T
+    for r in np.flatnonzero(pos_e[out] < 0):
+        unit = np.zeros(b.size)
+        unit[pos_b[out[r]]] = 1.0
+        basis_out[r, Phi.shape[1] :] = _rotate(R, unit[:, None], True)[:, 0]
     return CraigBamptonModel(
         Lambda=Lambda,
         kappa_bb=kappa,
@@ -302,7 +308,7 @@ def craig_bampton(
         output_basis=basis_out,
         n_dof=n,
         Phi=Phi if keep_basis else None,
-        Psi=Psi if keep_basis else None,
+        Psi=None if Psi_kept is None else _rotate(R, Psi_kept.T, True).T,
         excess_dofs=e if keep_basis else None,
         meta=dict(meta or {}),
     )
@@ -364,6 +370,7 @@ def reduce_disk(
         boundary_rotations=rots,
         keep_basis=keep_basis,
         backend=backend,
-        meta={"slots": list(slots), "n_sectors": bd.n_slots, "grid": list(bd.params.grid), "cyclic": True},
+        meta={"slots": list(slots), "n_sectors": bd.n_slots, "grid": list(bd.params.grid),
+              "cyclic": bool(getattr(bd, "cyclic", True))},
     )
 
