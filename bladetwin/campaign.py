@@ -11,9 +11,18 @@ import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 
-__all__ = ["Campaign", "CampaignError", "FilmEntry", "TestEntry", "check_files", "read_campaign"]
+__all__ = ["Campaign", "CampaignError", "FilmEntry", "TestEntry", "check_files", "read_campaign", "model_family",
+           "imported_model_table", "ACADEMIC_MODEL_KEYS", "IMPORTED_MODEL_KEYS"]
 
 TEST_TYPES = ("blade", "disk", "d1b", "assembly")
+
+#: Keys of a ``[model]`` table naming the academic twin.
+ACADEMIC_MODEL_KEYS = ("family", "level", "n_blades", "grid")
+#: Keys of a ``[model]`` table describing an imported FE model (those of ``bladetwin fe export``'s
+#: ``model.toml``, read by :func:`rom.importers.model.load_bladed_disk`), besides ``family`` and ``file``.
+IMPORTED_MODEL_KEYS = ("format", "units", "disk", "blade", "placement", "grids")
+# Keys of [model.disk] / [model.blade] that name files.
+_COMPONENT_FILE_KEYS = ("K", "M", "file", "archive", "dofmap", "coords", "node_sets")
 
 
 class CampaignError(ValueError):
@@ -81,7 +90,8 @@ class Campaign:
     known_joints : tuple of int
         The filmed joints (1-based).
     model : dict
-        The ``[model]`` table (family, level, n_blades, grid).
+        The ``[model]`` table: the academic twin's (family, level, n_blades, grid) or an imported model's
+        (:func:`imported_model_table`; docs/campaign.md).
     tests : tuple of TestEntry
     films : tuple of FilmEntry
     """
@@ -138,6 +148,110 @@ def _file(root: Path, rel, where: str) -> Path:
     return path
 
 
+def model_family(model: dict, where: str) -> str:
+    """``"academic"`` or ``"imported"``: the family of a campaign's ``[model]`` table.
+
+    ``family`` says it; without it, a table with any key of an imported model (``file`` or one of
+    :data:`IMPORTED_MODEL_KEYS`) is imported, any other the academic twin.
+
+    Raises
+    ------
+    CampaignError
+        An unknown family, or academic and imported keys mixed.
+    """
+    imported = sorted(set(model) & {"file", *IMPORTED_MODEL_KEYS})
+    family = model.get("family", "imported" if imported else "academic")
+    if family not in ("academic", "imported"):
+        raise CampaignError(f"{where}: family = {family!r}, expected 'academic' (the twin) or 'imported' (a lab's "
+                            "FE model, docs/campaign.md)")
+    if family == "academic":
+        unknown = sorted(set(model) - set(ACADEMIC_MODEL_KEYS))
+        if unknown:
+            raise CampaignError(f"{where}: unknown key(s) {unknown} for family 'academic'; allowed: "
+                                f"{list(ACADEMIC_MODEL_KEYS)} (an imported model says family = 'imported')")
+    else:
+        twin = sorted(set(model) & {"level", "n_blades", "grid"})
+        if twin:
+            raise CampaignError(f"{where}: key(s) {twin} belong to the academic twin, not to an imported model "
+                                "(its slots and grid come from its files)")
+    return family
+
+
+def imported_model_table(model: dict, root: Path, where: str) -> tuple[dict, Path, str]:
+    """The table to import for an imported ``[model]``, the folder its paths are relative to, and its name.
+
+    ``[model]`` either holds the table itself (paths relative to the campaign folder ``root``) or names, with
+    ``file``, a TOML file whose ``[model]`` table it is (e.g. ``bladetwin fe export``'s ``model.toml``; paths
+    relative to that file's folder).
+
+    Raises
+    ------
+    CampaignError
+        ``file`` beside other keys, a missing or unreadable file, a file without a ``[model]`` table.
+    """
+    if "file" not in model:
+        return {k: v for k, v in model.items() if k != "family"}, root, where
+    rest = sorted(set(model) - {"family", "file"})
+    if rest:
+        raise CampaignError(f"{where}: [model] file = {model['file']!r} names the model; {rest} belong in that "
+                            "file")
+    rel = model["file"]
+    if not isinstance(rel, str) or not rel:
+        raise CampaignError(f"{where}: [model] file = {rel!r}, expected a path relative to the campaign folder")
+    path = (root / rel).resolve()
+    if not path.is_file():
+        raise CampaignError(f"{where}: [model] file = {rel!r}: {path} not found")
+    try:
+        doc = tomllib.loads(path.read_text(encoding="utf-8"))
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
+        raise CampaignError(f"{path}: not valid TOML ({' '.join(str(exc).split())})") from None
+    table = doc.get("model")
+    if not isinstance(table, dict):
+        raise CampaignError(f"{path}: no [model] table (expected the model.toml of `bladetwin fe export`)")
+    return table, path.parent, str(path)
+
+
+def _check_imported_model(model: dict, root: Path, n_blades: int, grid: tuple[int, int], where: str) -> None:
+    """What the manifest can tell of an imported model without reading its matrices: slots, grid, files.
+
+    The full check (matrix sizes, node sets, grid conformity) needs the import itself, which
+    :func:`bladetwin.pipeline.load_model` does; this one makes a wrong count or a missing file fail in seconds.
+    """
+    table, base, where = imported_model_table(model, root, where)
+    placement = table.get("placement")
+    if isinstance(placement, dict) and "n_slots" in placement and placement["n_slots"] != n_blades:
+        raise CampaignError(f"{where}: [model.placement] n_slots = {placement['n_slots']!r}, but the campaign has "
+                            f"n_blades = {n_blades}")
+    grids = table.get("grids")
+    if isinstance(grids, dict) and "shape" in grids and list(grids["shape"]) != list(grid):
+        raise CampaignError(f"{where}: [model.grids] shape = {grids['shape']!r}, but the campaign's grid is "
+                            f"{list(grid)}")
+    named = [("grids", "file", grids.get("file"))] if isinstance(grids, dict) else []
+    for comp in ("disk", "blade"):
+        t = table.get(comp)
+        if isinstance(t, dict):
+            named += [(comp, k, t[k]) for k in _COMPONENT_FILE_KEYS if k in t]
+    for comp, key, rel in named:
+        if not isinstance(rel, str) or not rel:
+            raise CampaignError(f"{where}: [model.{comp}] {key} = {rel!r}, expected a file name")
+        if not (base / rel).is_file():
+            raise CampaignError(f"{where}: [model.{comp}] {key} = {rel!r}: {base / rel} not found")
+
+
+def _check_model(model: dict, root: Path, n_blades: int, grid: tuple[int, int], path: Path) -> None:
+    where = f"{path} [model]"
+    if model_family(model, where) == "imported":
+        # Its messages name the table themselves ([model.placement], ...), as rom.importers' do.
+        _check_imported_model(model, root, n_blades, grid, str(path))
+        return
+    # The twin is built with the [model] values; a count or grid other than the campaign's would give an ROM
+    # whose slots or contact nodes do not match the tests and films.
+    if "n_blades" in model and model["n_blades"] != n_blades:
+        raise CampaignError(f"{where}: n_blades = {model['n_blades']!r}, but [campaign] n_blades = {n_blades}")
+    if "grid" in model and model["grid"] != list(grid):
+        raise CampaignError(f"{where}: grid = {model['grid']!r}, but [campaign] grid = {list(grid)}")
+
+
 def read_campaign(folder: str | Path) -> Campaign:
     """Read and check ``folder/campaign.toml`` (docs/campaign.md).
 
@@ -178,6 +292,7 @@ def read_campaign(folder: str | Path) -> Campaign:
     model = doc.get("model", {})
     if not isinstance(model, dict):
         raise CampaignError(f"{path}: [model] must be a table")
+    _check_model(model, root, n_blades, grid, path)
     tests = []
     seen: dict[tuple, int] = {}
     for k, t in enumerate(_need(doc, "tests", str(path), list)):

@@ -1,6 +1,7 @@
 """``bladetwin rom``: reduced-order models (build, modes, validate) of the academic twin (docs/rom.md).
 
-* ``rom build``: Craig–Bampton disk (one slot) and Rubin blade, through the on-disk cache.
+* ``rom build``: Craig–Bampton disk (one slot) and Rubin blade, through the on-disk cache; of the twin, or
+  with ``--model`` of an imported model (a ``model.toml``) or a campaign's ``[model]`` (docs/campaign.md).
 * ``rom modes --assembly d1b|full``: ROM modes for a contact pattern (file) and blade mistuning δ.
 * ``rom validate``: ROM-vs-FE tables (frequency errors, MAC at the measurement DOFs); ``--json`` gives
   ``{"disk": {"max_rel_err"}, "blade": {...}, "d1b": {"max_rel_err", "min_mac"}, "full": {..., "n_modes"}}``.
@@ -18,7 +19,7 @@ import numpy as np
 from .cli_fe import add_model_args, build_model, parse_grid
 from .util import format_table, print_json, step
 
-__all__ = ["register", "build_roms", "parse_delta"]
+__all__ = ["register", "build_roms", "model_from_args", "parse_delta"]
 
 
 def _common(p: argparse.ArgumentParser) -> None:
@@ -43,6 +44,10 @@ def register(sub) -> None:
     p = rsub.add_parser("build", help="reduce the disk (CB, one slot) and the blade (Rubin), cached")
     _common(p)
     p.add_argument("--slot", type=int, default=1, help="slot whose grids form the disk boundary (default: 1)")
+    p.add_argument("--model", default=None, metavar="PATH",
+                   help="reduce this model instead of the twin: a model.toml with an imported [model] table (as "
+                        "`bladetwin fe export` writes), or a campaign folder or its campaign.toml, whose [model] "
+                        "`bladetwin run` would use (docs/campaign.md); not with --level, --grid, --calibrate")
     p.set_defaults(func=_cmd_build)
 
     p = rsub.add_parser("modes", help="modes of the disk–one-blade or the full bladed-disk ROM")
@@ -67,13 +72,29 @@ def register(sub) -> None:
     p.set_defaults(func=_cmd_validate)
 
 
+def model_from_args(args, verbose: bool = True):
+    """The FE model of the command line: the twin (``--level``, ``--grid``, ``--calibrate``) or ``--model``."""
+    path = getattr(args, "model", None)
+    if path is None:
+        return build_model(args.level, parse_grid(args.grid), calibrate=args.calibrate, verbose=verbose)
+    # The twin's options would be silently ignored with --model: its files fix the mesh and the grid.
+    given = [flag for flag, on in (("--level", args.level != "default"), ("--grid", args.grid is not None),
+                                   ("--calibrate", args.calibrate)) if on]
+    if given:
+        raise ValueError(f"--model {path}: the model's files fix its mesh and grid; drop {', '.join(given)}")
+    from .pipeline import load_model_file
+
+    with step(f"importing the model of {path}", verbose):
+        return load_model_file(path)
+
+
 def build_roms(args, slot: int = 1, verbose: bool = True):
-    """Build the FE model, then the cached CB disk (``slot``) and Rubin blade."""
+    """Build the FE model (:func:`model_from_args`), then the cached CB disk (``slot``) and Rubin blade."""
     from rom import cache
     from rom.craig_bampton import DEFAULT_N_CB_MODES, reduce_disk
     from rom.rubin import DEFAULT_N_FREE_MODES, reduce_blade
 
-    bd = build_model(args.level, parse_grid(args.grid), calibrate=args.calibrate, verbose=verbose)
+    bd = model_from_args(args, verbose)
     bd.check_slot(slot)
     n_cb = args.n_cb or DEFAULT_N_CB_MODES
     m = args.n_free or DEFAULT_N_FREE_MODES

@@ -376,7 +376,8 @@ def flank_coordinates(bd: BladedDisk) -> tuple[np.ndarray, np.ndarray]:
     Parameters
     ----------
     bd : rom.academic.BladedDisk
-        The bladed disk; the blade's node sets ``"L"`` and ``"R"`` have the grid shape (rows, cols).
+        The bladed disk; the blade's node sets ``"L"`` and ``"R"`` have the grid shape (rows, cols). A bladed
+        disk with its own ``flank_coordinates()`` method (an imported one) answers for itself.
 
     Returns
     -------
@@ -390,6 +391,11 @@ def flank_coordinates(bd: BladedDisk) -> tuple[np.ndarray, np.ndarray]:
     ValueError
         If the L and R flanks do not share the same (u, v) layout.
     """
+    own = getattr(bd, "flank_coordinates", None)
+    if callable(own):
+        # An imported bladed disk (rom.importers.model.ImportedBladedDisk) knows its own flank axes; the
+        # academic frame below (x thickness, y radial, z axial) would misread any other blade frame.
+        return own()
     # (rows, cols, 3) per flank: x thickness, y radial, z axial
     X = {f: bd.blade.coords[bd.blade.node_set(f)] for f in ("L", "R")}
     if not np.allclose(X["L"][..., 1:], X["R"][..., 1:], rtol=0.0, atol=1e-12):

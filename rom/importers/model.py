@@ -12,6 +12,7 @@ the node-set conventions (disk ``"slot{s}_L"``, ``"slot{s}_R"`` grids and ``"mea
 The ``[model]`` table (written by ``bladetwin fe export`` as ``model.toml``, read by :func:`load_bladed_disk`)::
 
     [model]
+    # family = "imported"       # optional here; a campaign's [model] says it (docs/campaign.md)
     format = "mtx"              # mtx | op4 | full (a component table may override it)
     units = "SI"                # SI | mm-t-s | mm-kg-ms | cm-g-s | in-lbf-s (likewise)
 
@@ -54,7 +55,7 @@ import math
 import os
 import tomllib
 from collections.abc import Mapping
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -236,7 +237,9 @@ _COMPONENT_KEYS = {"format", "units", "K", "M", "file", "matrices", "archive", "
                    "meas", "meas_direction"}
 _PLACEMENT_KEYS = {"n_slots", "axis", "angles_deg", "rotation0", "origin0", "cyclic"}
 _GRID_KEYS = {"file", "disk_set", "blade_set", "row_axis", "col_axis", "incomplete", "shape", "tolerance", "rtol"}
-_MODEL_KEYS = {"format", "units", "disk", "blade", "placement", "grids"}
+# `family = "imported"` lets the same table serve as a campaign's [model] (docs/campaign.md), where the family
+# tells it from the academic twin's.
+_MODEL_KEYS = {"family", "format", "units", "disk", "blade", "placement", "grids"}
 
 
 def _table(section: Mapping, key: str, allowed: set[str], where: str, required: bool = True) -> Mapping:
@@ -295,6 +298,9 @@ def load_bladed_disk(section: Mapping, base_dir: str | os.PathLike = ".", *, whe
     unknown = sorted(set(section) - _MODEL_KEYS)
     if unknown:
         raise ModelImportError(f"{where}: unknown key(s) {unknown} in [model]; allowed: {sorted(_MODEL_KEYS)}")
+    if section.get("family", "imported") != "imported":
+        raise ModelImportError(f"{where}: [model] family = {section['family']!r}; a table of files describes an "
+                               "imported model (family = 'imported')")
     disk, dt, _ = _component(section, "disk", base, where)
     blade, bt, bunits = _component(section, "blade", base, where)
     pt = _table(section, "placement", _PLACEMENT_KEYS, where)
@@ -322,18 +328,22 @@ def load_bladed_disk(section: Mapping, base_dir: str | os.PathLike = ".", *, whe
     placement = BladePlacement(axis, angles, **kw)
     gt = _table(section, "grids", _GRID_KEYS, where, required=False)
     tolerance = gt.get("tolerance")
+    axes = None
+    if "row_axis" in gt or "col_axis" in gt:
+        if not ("row_axis" in gt and "col_axis" in gt):
+            raise ModelImportError(f"{where}: [model.grids] needs both row_axis and col_axis, or neither")
+        axes = FlankAxes.of(gt["row_axis"], gt["col_axis"], where)
     if "file" in gt:
         gfile = base / str(gt["file"])
         grids = grids_from_ids(disk, blade, read_grids_csv(gfile), n_slots, where=str(gfile))
         if "shape" in gt and tuple(grids.shape) != tuple(gt["shape"]):
             raise GridError(f"{gfile}: grids are {grids.shape[0]} × {grids.shape[1]}, [model.grids] shape says "
                             f"{list(gt['shape'])}")
+        if axes is not None:
+            # Explicit grids need no axes to be ordered, but ImportedBladedDisk.flank_coordinates does: without
+            # them it falls back on principal axes, which differ from the author's (the twin's are z, y).
+            grids = replace(grids, axes={f: axes for f in grids.blade})
     else:
-        axes = None
-        if "row_axis" in gt or "col_axis" in gt:
-            if not ("row_axis" in gt and "col_axis" in gt):
-                raise ModelImportError(f"{where}: [model.grids] needs both row_axis and col_axis, or neither")
-            axes = FlankAxes.of(gt["row_axis"], gt["col_axis"], where)
         grids = grids_from_node_sets(
             disk, blade, placement, disk_set=str(gt.get("disk_set", "slot{slot}_{flank}")),
             blade_set=str(gt.get("blade_set", "{flank}")), axes=axes,
