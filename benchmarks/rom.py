@@ -11,7 +11,10 @@ Run (default level, several minutes)::
 
     .venv/bin/python benchmarks/rom.py [--level default] [--workdir /tmp/bladetwin-rom-bench] [--json out.json]
 
-Targets: one disk–one-blade solve (10 modes) ≤ 0.25 s; full assembly, first three families, ≤ 3 min, ≤ 12 GB.
+Targets: one disk–one-blade solve (10 modes) ≤ 0.25 s; full assembly, first three families, ≤ 3 min, ≤ 12 GB
+(issue 3). Issue 12 item 4: disk reduction ≤ 60 s and ≤ 4 GB; a full-assembly solve of 3N modes with new
+patterns and δ ≤ 20 s and ≤ 6 GB, within 0.05 % and MAC ≥ 0.999 of FE. The last lines compare each step
+with its targets.
 """
 
 from __future__ import annotations
@@ -194,11 +197,28 @@ def main(argv: list[str] | None = None) -> int:
             extra += f" | vs FE: max |err| {100 * r['max_rel_err']:.4f} %, min MAC {r['min_mac']:.5f}"
         print(f"{LABELS[step]:<42s} {r['seconds']:8.2f} s  peak {r['peak_gb']:6.2f} GB "
               f"(model build {r['baseline_gb']:.2f} GB){extra}", flush=True)
+    by_step = {r["step"]: r for r in results}
+    checks = []
+    if "rom_disk_cb" in by_step:
+        r = by_step["rom_disk_cb"]
+        checks.append(("disk reduction ≤ 60 s, ≤ 4 GB", f"{r['seconds']:.1f} s, {r['peak_gb']:.2f} GB",
+                       r["seconds"] <= 60 and r["peak_gb"] <= 4))
+    if "rom_full" in by_step:
+        r = by_step["rom_full"]
+        fe = by_step.get("fe_full")
+        ref = f" (FE {fe['seconds']:.1f} s, ratio {r['seconds'] / fe['seconds']:.2f})" if fe else ""
+        checks.append(("full solve ≤ 20 s, ≤ 6 GB", f"{r['seconds']:.1f} s, {r['peak_gb']:.2f} GB{ref}",
+                       r["seconds"] <= 20 and r["peak_gb"] <= 6))
+        checks.append(("full vs FE ≤ 0.05 %, MAC ≥ 0.999", f"{100 * r['max_rel_err']:.4f} %, {r['min_mac']:.5f}",
+                       r["max_rel_err"] <= 5e-4 and r["min_mac"] >= 0.999))
+    for name, got, ok in checks:
+        print(f"target {name:<36s} {got:<44s} {'met' if ok else 'NOT met'}")
     if args.json:
         from rom.fileio import atomic_path
 
         with atomic_path(args.json) as tmp, open(tmp, "w") as fh:
-            json.dump({"level": args.level, "results": results}, fh, indent=1)
+            json.dump({"level": args.level, "results": results,
+                       "targets": [{"target": n, "measured": g, "met": ok} for n, g, ok in checks]}, fh, indent=1)
     return 0
 
 
