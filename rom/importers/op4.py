@@ -528,6 +528,15 @@ def write_op4(
     return Path(path)
 
 
+def _dense_segment(rows: np.ndarray, vals: np.ndarray) -> tuple[int, np.ndarray]:
+    """A dense column's one stored segment: its first row (0-based) and the values from there to its last
+    nonzero, zeros between (a dense OP4 column is written from its first to its last nonzero)."""
+    first, last = int(rows[0]), int(rows[-1])
+    col = np.zeros(last - first + 1)
+    col[rows - first] = vals
+    return first, col
+
+
 def _write_binary(fh, name: str, A: sp.csc_matrix, sparse: bool, e: str) -> None:
     n_rows, n_cols = A.shape
     i4, f8 = e + "i4", e + "f8"
@@ -539,9 +548,7 @@ def _write_binary(fh, name: str, A: sp.csc_matrix, sparse: bool, e: str) -> None
             continue
         rows, vals = A.indices[lo:hi], A.data[lo:hi]
         if not sparse:
-            first, last = int(rows[0]), int(rows[-1])
-            col = np.zeros(last - first + 1)
-            col[rows - first] = vals
+            first, col = _dense_segment(rows, vals)
             n = 12 + 8 * col.size
             fh.write(struct.pack(e + "4i", n, j + 1, first + 1, 2 * col.size))
             fh.write(col.astype(f8).tobytes())
@@ -575,9 +582,7 @@ def _write_text(fh, name: str, A: sp.csc_matrix, sparse: bool) -> None:
             continue
         rows, vals = A.indices[lo:hi], A.data[lo:hi]
         if not sparse:
-            first, last = int(rows[0]), int(rows[-1])
-            col = np.zeros(last - first + 1)
-            col[rows - first] = vals
+            first, col = _dense_segment(rows, vals)
             fh.write(f"{j + 1:8d}{first + 1:8d}{col.size:8d}\n")
             fh.write(_value_lines(col))
             continue
