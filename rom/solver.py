@@ -79,8 +79,9 @@ class _PardisoFactor:
 
         self._A = sp.triu(A, format="csr").astype(np.float64)
         self._A.sort_indices()
-        # size_limit_storage=∞: keep a copy for the "same matrix?" check instead of hashing it per solve.
-        self._solver = pypardiso.PyPardisoSolver(mtype=2, size_limit_storage=np.inf)
+        # size_limit_storage=0: pypardiso keeps a hash, not a copy, for its "same matrix?" check; our solves
+        # bypass that check (see the class notes), so a copy of A would only cost memory.
+        self._solver = pypardiso.PyPardisoSolver(mtype=2, size_limit_storage=0)
         self._solver.factorize(self._A)
         # After the factorization: with iparm(1) = 0 its first call fills in Pardiso's defaults (iparm(8) = 2).
         self._solver.set_iparm(8, 0)
