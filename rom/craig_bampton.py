@@ -12,9 +12,9 @@ boundary displacement of node triplet ``j`` is ``x_b,phys = R_j x_b``. :func:`re
 rotations, so the disk's slot DOFs come out in each slot's blade-local frame and tie to the blade's root
 DOFs without further rotation (and the reduced model of one slot serves every slot of a cyclic disk).
 
-Memory: the constraint modes Ψ (Eq. 3) are a dense ``(n_e, n_b)`` array. For one slot of the default
-academic disk that is 171 k × 1 302 doubles ≈ 1.8 GB while the reduction runs; it is dropped afterwards
-unless ``keep_basis=True``.
+Memory: the constraint modes Ψ (Eq. 3) would be a dense ``(n_e, n_b)`` array, 171 k × 1 302 doubles ≈ 1.8 GB
+for one slot of the default academic disk. The reduction works through them one block of boundary DOFs at a
+time and holds them whole only with ``keep_basis=True`` (the default disk's build peaks at 3.2 GB).
 """
 
 from __future__ import annotations
