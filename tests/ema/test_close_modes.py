@@ -143,3 +143,18 @@ def test_no_cluster_holds_two_poles_of_one_order(close):
             near = (np.abs(diagram.frequency_hz - f) / f < 3e-4) & (diagram.order >= 40)
             stable = near & (diagram.stability >= STABLE_FD)
             assert np.unique(diagram.order[stable]).size >= 0.8 * 21, f"{f:.2f} Hz"
+
+
+def test_clusters_do_not_depend_on_the_pair_block_size(close, monkeypatch):
+    """``cluster_poles`` computes the candidate pairs' MACs in blocks to bound memory (the bundled
+    full-assembly test took 19 GB in one block): blocks of a few pairs give exactly the clusters of one block."""
+    import ema.selection as selection
+
+    frf, _, _ = close
+    diagram = fit(frf, method="lsrf", max_order=60, refine=False).diagram
+    whole = cluster_poles(diagram, STABLE_FD)
+    monkeypatch.setattr(selection, "_PAIR_BLOCK_ENTRIES", 3 * diagram.vector.shape[1])  # 3 pairs per block
+    blocked = cluster_poles(diagram, STABLE_FD)
+    assert whole[0].size > 10
+    np.testing.assert_array_equal(whole[0], blocked[0])
+    np.testing.assert_array_equal(whole[1], blocked[1])
