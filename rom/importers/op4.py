@@ -108,24 +108,9 @@ class _Columns:
                  dense: bool) -> None:
         """Runs of consecutive rows of one column: run k starts at row ``starts[k]`` (1-based) and has
         ``counts[k]`` of the concatenated ``values``."""
-        r0 = np.asarray(starts, dtype=np.int64)
-        c = np.asarray(counts, dtype=np.int64)
-        if (r0 < 1).any() or (r0 - 1 + c > self.n_rows).any():
-            k = int(np.flatnonzero((r0 < 1) | (r0 - 1 + c > self.n_rows))[0])
-            raise ModelImportError(f"{self.path}: matrix {self.name!r} column {icol}: rows {r0[k]}.."
-                                   f"{r0[k] + c[k] - 1} outside 1..{self.n_rows} ({where}; damaged file?)")
-        if not np.isfinite(values).all():
-            raise ModelImportError(f"{self.path}: matrix {self.name!r} column {icol}: non-finite value ({where})")
-        # Row of every value: the run's start plus the position within the run.
-        first = np.cumsum(c) - c
-        rows = np.repeat(r0 - 1 - first, c) + np.arange(values.size, dtype=np.int64)
-        if dense:  # a dense column runs from its first to its last non-zero: drop the zeros in between
-            keep = values != 0
-            rows, values = rows[keep], values[keep]
-        # Zeros written in sparse strings are kept: they are the matrix's stored structure.
-        self.rows.append(rows)
-        self.cols.append(np.full(values.size, icol - 1, dtype=np.int64))
-        self.vals.append(np.asarray(values, dtype=np.float64))
+        n = len(starts)
+        self.add_all(np.full(n, icol, dtype=np.int64), starts, counts, np.full(n, dense), values,
+                     f"column {icol}, {where}")
 
     def add_all(self, cols: np.ndarray, starts: np.ndarray, counts: np.ndarray, dense: np.ndarray,
                 values: np.ndarray, where: str) -> None:
