@@ -38,12 +38,17 @@ INSTALL_HINT = 'pip install "bladetwin[ansys]"'
 
 
 def _reader(path: Path):
-    """``ansys.mapdl.reader``, imported lazily; a one-line error saying what to install when it is missing."""
+    """``ansys.mapdl.reader``, imported lazily, for reading the existing file ``path``.
+
+    A missing package gives a one-line error saying what to install; a missing file, ``FileNotFoundError``.
+    """
     try:
         from ansys.mapdl import reader
     except ImportError:
         raise MissingDependencyError(f"{path}: reading ANSYS files needs the optional package ansys-mapdl-reader; "
                                      f"install it with: {INSTALL_HINT}") from None
+    if not path.is_file():
+        raise FileNotFoundError(2, "No such file or directory", str(path))
     return reader
 
 
@@ -60,8 +65,6 @@ def read_ansys_archive(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray,
     """
     path = Path(path)
     reader = _reader(path)
-    if not path.is_file():
-        raise FileNotFoundError(2, "No such file or directory", str(path))
     try:
         archive = reader.Archive(str(path))
         ids = np.asarray(archive.nnum, dtype=np.int64)
@@ -103,8 +106,6 @@ def read_ansys_full(
     path = Path(path)
     reader = _reader(path)
     system = unit_system(units)
-    if not path.is_file():
-        raise FileNotFoundError(2, "No such file or directory", str(path))
     try:
         full = reader.read_binary(str(path))
     except Exception as exc:  # damaged files surface as assorted exception types from the compiled reader

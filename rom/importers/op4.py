@@ -144,11 +144,20 @@ class _Columns:
         return A
 
 
-def _check_type(path: Path, name: str, mtype: int) -> None:
+def _open_matrix(path: Path, name: str, ncol: int, nrow: int, mtype: int, where: str) -> tuple[_Columns, bool]:
+    """Check a matrix header (text or binary) and start its accumulator.
+
+    Returns the accumulator and whether the columns are stored as BIGMAT (``nrow < 0``, or so many rows that
+    Nastran writes BIGMAT regardless). ``where`` prefixes the messages (e.g. ``"line 12: "``).
+    """
     if mtype != 2:
         what = _TYPES.get(mtype, f"unknown type {mtype}")
         raise ModelImportError(f"{path}: matrix {name!r} is {what} (TYPE {mtype}); only real double precision "
                                "(TYPE 2) is supported: export it with OUTPUT4 in double precision")
+    if ncol <= 0 or nrow == 0:
+        raise ModelImportError(f"{path}: {where}matrix {name!r} header has {nrow} rows and {ncol} columns")
+    n_rows = abs(nrow)
+    return _Columns(path, name, n_rows, ncol), nrow < 0 or n_rows >= BIGMAT_MIN_ROWS
 
 
 # ------------------------------------------------------------------------------------------------ reading
@@ -220,12 +229,7 @@ def _read_binary(path: Path, e: str) -> list[Op4Matrix]:
                 raise ModelImportError(f"{path}: expected a matrix header record (24 bytes) at byte {pos}, got {n}")
             ncol, nrow, form, mtype = (int(v) for v in np.frombuffer(buf, i4, 4, start))
             name = bytes(buf[start + 16:start + 24]).decode("ascii", "replace").strip()
-            _check_type(path, name, mtype)
-            if ncol <= 0 or nrow == 0:
-                raise ModelImportError(f"{path}: matrix {name!r} header has {nrow} rows and {ncol} columns")
-            n_rows = abs(nrow)
-            bigmat = nrow < 0 or n_rows >= BIGMAT_MIN_ROWS
-            acc = _Columns(path, name, n_rows, ncol)
+            acc, bigmat = _open_matrix(path, name, ncol, nrow, mtype, "")
             storage = "dense"
             pos = start + n + 4
             while True:
@@ -367,12 +371,7 @@ def _read_text(path: Path) -> list[Op4Matrix]:
             raise ModelImportError(f"{path}: line {lno}: matrix {name!r} header has no number format such as "
                                    f"'1P,3E23.16' (got {line[40:].strip()!r})")
         per_line, width = int(fmt.group(1)), int(fmt.group(2))
-        _check_type(path, name, mtype)
-        if ncol <= 0 or nrow == 0:
-            raise ModelImportError(f"{path}: line {lno}: matrix {name!r} has {nrow} rows and {ncol} columns")
-        n_rows = abs(nrow)
-        bigmat = nrow < 0 or n_rows >= BIGMAT_MIN_ROWS
-        acc = _Columns(path, name, n_rows, ncol)
+        acc, bigmat = _open_matrix(path, name, ncol, nrow, mtype, f"line {lno}: ")
         storage = "dense"
         # Walk the integer lines; value lines are only counted here and parsed at the end, all at once.
         blocks: list[tuple[int, int]] = []
