@@ -42,9 +42,14 @@ t = time.perf_counter()
 ds = load_dataset(sys.argv[1])
 t_load = time.perf_counter() - t
 s = int(sys.argv[2])
-m = TwoStepKNN.from_dataset(ds).match(query_matrix(ds.deltas[s][None, :], ds.features_hz[s][None, :]))
+q = query_matrix(ds.deltas[s][None, :], ds.frequencies_hz[s, list(ds.feature_modes)][None, :])
+m = TwoStepKNN.from_dataset(ds).match(q)
 print(json.dumps({"load_s": t_load, "total_s": time.perf_counter() - t, "pair": [int(x) for x in m.label[0, 0]]}))
 """
+
+
+#: Fresh-process load + query probes; the median is reported.
+_N_PROBES = 5
 
 
 class TreeRSS:
@@ -153,13 +158,19 @@ def main(argv: list[str] | None = None) -> int:
         rate_2 = r2.per_s
         say(f"2 workers: {ds.n_samples} samples in {build_s:.1f} s; peak {mem.peak_gb:.2f} GB")
 
-        # As a user's run meets it: a fresh process (imports done) loads the table and asks one query.
-        s = int(rng.integers(ds.n_samples))
-        probe = subprocess.run([sys.executable, "-c", _QUERY, str(path), str(s)], capture_output=True, text=True,
-                               check=True)
-        q = json.loads(probe.stdout)
-        load_s, query_s = q["load_s"], q["total_s"]
-        query_ok = tuple(q["pair"]) == tuple(int(x) for x in ds.pair[s])
+        # As a user's run meets it: a fresh process (imports done) loads the table and asks one query. Fresh
+        # pages dominate it, and their cost varies from run to run on a shared machine: the median of 5.
+        probes = []
+        for s in rng.integers(ds.n_samples, size=_N_PROBES):
+            run = subprocess.run([sys.executable, "-c", _QUERY, str(path), str(s)], capture_output=True, text=True,
+                                 check=True)
+            q = json.loads(run.stdout)
+            q["ok"] = tuple(q["pair"]) == tuple(int(x) for x in ds.pair[s])
+            probes.append(q)
+        load_s = float(np.median([q["load_s"] for q in probes]))
+        query_all = [q["total_s"] for q in probes]
+        query_s = float(np.median(query_all))
+        query_ok = all(q["ok"] for q in probes)
         file_mb = path.stat().st_size / 1e6
 
     picks = rng.choice(ds.n_samples, size=min(args.n_direct, ds.n_samples), replace=False)
@@ -172,7 +183,8 @@ def main(argv: list[str] | None = None) -> int:
         "max_rel_err": float(np.max(errs)),
         "n_direct_checked": int(len(picks)), "direct_s_per_sample": direct_s,
         "direct_s_extrapolated": direct_s * ds.n_samples, "speedup": direct_s * ds.n_samples / build_s,
-        "query_s": query_s, "load_s": load_s, "query_finds_its_own_sample": query_ok, "parquet_mb": file_mb,
+        "query_s": query_s, "query_s_all": query_all, "load_s": load_s, "query_finds_its_own_sample": query_ok,
+        "parquet_mb": file_mb,
         "n_fallbacks": int(ds.meta["n_fallbacks"]),
     }
     print(f"{out['n_samples']:,} samples ({out['n_pairs']} pairs × {n_rows:,} δ rows, step {args.step} %)")
@@ -183,8 +195,9 @@ def main(argv: list[str] | None = None) -> int:
     print(f"{'peak memory (all processes)':<34s} {mem.peak_gb:9.2f} GB  target ≤ 6 GB")
     print(f"{'max |rel err| vs direct':<34s} {100 * out['max_rel_err']:9.2e} %  on {len(picks)} samples, "
           "target ≤ 0.01 %")
-    print(f"{'load + one k-NN query':<34s} {query_s:9.2f} s   target ≤ 1 s (load {load_s:.2f} s; found its own "
-          f"pair: {query_ok}); file {file_mb:.0f} MB")
+    print(f"{'load + one k-NN query':<34s} {query_s:9.2f} s   target ≤ 1 s (median of {len(query_all)} fresh "
+          f"processes, {min(query_all):.2f}–{max(query_all):.2f} s; load {load_s:.2f} s; each found its own pair: "
+          f"{query_ok}); file {file_mb:.0f} MB")
     if args.json:
         from rom.fileio import atomic_path
 

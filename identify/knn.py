@@ -226,7 +226,10 @@ class TwoStepKNN(ClassifierMixin, BaseEstimator):
             Bad hyper-parameters, too few columns, or a δ subset smaller than ``n_neighbors``.
         """
         X, y = validate_data(self, X, y, multi_output=True, dtype=np.float64)
-        check_classification_targets(y)
+        if y.dtype.kind not in "iub":
+            # Integer labels are always classification targets; the check's unique() over a million-row y
+            # costs 0.16 s, so only other labels (floats, strings) go through it.
+            check_classification_targets(y)
         nd, k = self._check_params(X.shape[1])
         D, F = X[:, :nd], X[:, nd:]
 
@@ -448,7 +451,12 @@ def dataset_xy(dataset) -> tuple[np.ndarray, np.ndarray]:
         raise IdentifyError(
             f"dataset.feature_modes {tuple(modes.tolist())}: expected 1+ columns in 0..{f.shape[1] - 1}"
         )
-    return np.hstack([D, f[:, modes]]), pair
+    # One allocation, filled column by column (hstack of f[:, modes] would make a second million-row copy).
+    X = np.empty((n, D.shape[1] + modes.size))
+    X[:, :D.shape[1]] = D
+    for j, m in enumerate(modes):
+        X[:, D.shape[1] + j] = f[:, m]
+    return X, pair
 
 
 def query_matrix(deltas, feature_frequencies_hz) -> np.ndarray:

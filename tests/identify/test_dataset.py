@@ -234,9 +234,40 @@ def test_loader_validates(built, tmp_path):
         "pair holds indices": _rewrite(good, tmp_path / "g.parquet",
                                        column=("i_R", np.full(ds.n_samples, 7, np.int32))),
     }
+    # Damaged rows: a column of the wrong type, and data pages overwritten in the middle of the file.
+    cases["rows cannot be read"] = _rewrite(good, tmp_path / "h.parquet",
+                                            column=("f_2", np.array(["x"] * ds.n_samples)))
+    data = bytearray(good.read_bytes())
+    data[len(data) // 3: len(data) // 3 + 64] = b"\xff" * 64
+    (tmp_path / "i.parquet").write_bytes(bytes(data))
     for match, path in cases.items():
         with pytest.raises(IdentifyError, match=match):
             load_dataset(path)
+    try:  # the corrupted pages: refused, whatever Arrow names the fault, never half-read
+        load_dataset(tmp_path / "i.parquet")
+    except IdentifyError as exc:
+        assert "i.parquet" in str(exc)
+    else:  # the overwritten bytes fell in a page whose values still decode: then they must differ from the good file
+        back = load_dataset(tmp_path / "i.parquet")
+        assert not np.array_equal(back.frequencies_hz, ds.frequencies_hz) or not np.array_equal(back.deltas, ds.deltas)
+
+
+def test_loader_reads_in_batches_and_the_dataset_owns_its_arrays(built, tmp_path, monkeypatch):
+    import identify.dataset as dsmod
+
+    _, ds = built
+    path = save_dataset(ds, tmp_path / "ds.parquet")
+    whole = load_dataset(path)
+    monkeypatch.setattr(dsmod, "_READ_BATCH", 7)  # many batches, the last one short
+    batched = load_dataset(path)
+    for name in ("deltas", "pair", "frequencies_hz", "error_bound", "fallback", "mac_min"):
+        np.testing.assert_array_equal(getattr(batched, name), getattr(whole, name), err_msg=name)
+        assert not getattr(batched, name).flags.writeable, name
+    # Writeable arrays handed in are copied: changing them afterwards leaves the dataset as it was.
+    F = np.array(ds.frequencies_hz)
+    own = dataclasses.replace(ds, frequencies_hz=F)
+    F[:] = 0
+    np.testing.assert_array_equal(own.frequencies_hz, ds.frequencies_hz)
 
 
 def test_grid_from_deltas_rounds_outward():
