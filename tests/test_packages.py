@@ -18,3 +18,15 @@ def test_package_resolves_to_this_repository(name):
         pytest.skip(f"package {name} not created yet")
     mod = importlib.import_module(name)
     assert Path(mod.__file__).resolve().parent == REPO / name
+
+
+def test_python_dash_m_bladetwin_runs_the_command_line():
+    import subprocess
+    import sys
+
+    run = subprocess.run([sys.executable, "-m", "bladetwin", "--help"], capture_output=True, text=True, timeout=120)
+    assert run.returncode == 0, run.stderr
+    assert run.stdout.startswith("usage: bladetwin") and " run " in run.stdout
+    bad = subprocess.run([sys.executable, "-m", "bladetwin", "no-such-command"], capture_output=True, text=True,
+                         timeout=120)
+    assert bad.returncode == 2 and "invalid choice" in bad.stderr
