@@ -191,10 +191,10 @@ class Dataset:
 
 
 def _readonly(a, dtype, name: str, ndim: int) -> np.ndarray:
-    # A read-only array of the right dtype is taken as it is (load_dataset hands over its own arrays, and a
-    # million-row table would otherwise be copied again); anything else is copied, so the caller cannot
-    # change the dataset afterwards through an array it still holds.
-    owned = isinstance(a, np.ndarray) and a.dtype == dtype and not a.flags.writeable
+    # A read-only array of the right dtype that owns its memory is taken as it is (load_dataset hands over
+    # its own arrays, and a million-row table would otherwise be copied again); anything else, a view
+    # included, is copied, so the caller cannot change the dataset afterwards through an array it holds.
+    owned = isinstance(a, np.ndarray) and a.dtype == dtype and not a.flags.writeable and a.base is None
     try:
         out = a if owned else np.array(a, dtype=dtype)
     except (TypeError, ValueError):

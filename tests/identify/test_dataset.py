@@ -268,6 +268,13 @@ def test_loader_reads_in_batches_and_the_dataset_owns_its_arrays(built, tmp_path
     own = dataclasses.replace(ds, frequencies_hz=F)
     F[:] = 0
     np.testing.assert_array_equal(own.frequencies_hz, ds.frequencies_hz)
+    # So are read-only views of writeable memory.
+    G = np.array(ds.frequencies_hz)
+    view = G.view()
+    view.flags.writeable = False
+    held = dataclasses.replace(ds, frequencies_hz=view)
+    G[:] = 0
+    np.testing.assert_array_equal(held.frequencies_hz, ds.frequencies_hz)
 
 
 def test_grid_from_deltas_rounds_outward():
