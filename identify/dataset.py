@@ -692,8 +692,13 @@ def save_dataset(dataset: Dataset, path: str | os.PathLike) -> Path:
     }
     table = pa.table(cols).replace_schema_metadata({_META_KEY: json.dumps(meta, default=_json_default).encode()})
     path = Path(path)
+    # Dictionary encoding only where values repeat (δ grid values, pattern indices, flags). Arrow tries it
+    # on every column by default, and the frequency columns' dictionary pages cost read time for nothing:
+    # without them the 1.76 M-sample file is 122 MB instead of 129 and loads in 0.47 s instead of 0.70
+    # (medians of 8 fresh processes).
+    repeated = [c for c in cols if c.startswith("delta_") or c in ("i_L", "i_R", "fallback")]
     with atomic_path(path) as tmp:
-        pq.write_table(table, tmp)
+        pq.write_table(table, tmp, use_dictionary=repeated)
     return path
 
 
