@@ -785,12 +785,13 @@ def load_dataset(path: str | os.PathLike, *, model_key: str | None = None) -> Da
              (("error_bound", np.float64), ("fallback", bool), ("mac_min", np.float64)) if name in schema.names}
     targets = [(D, k) for k in range(nd)] + [(pair, 0), (pair, 1)] + [(F, m) for m in range(nm)]
     targets += [(a, None) for a in extra.values()]
+    wanted = names + list(extra)
     pos = 0
     try:
-        for batch in pf.iter_batches(batch_size=_READ_BATCH, columns=names + list(extra)):
+        for batch in pf.iter_batches(batch_size=_READ_BATCH, columns=wanted):
             rows = slice(pos, pos + batch.num_rows)
-            for (out, k), column in zip(targets, batch.columns, strict=True):
-                values = column.to_numpy(zero_copy_only=False)
+            for (out, k), name in zip(targets, wanted, strict=True):
+                values = batch.column(name).to_numpy(zero_copy_only=False)  # by name: any column order
                 if k is None:
                     out[rows] = values
                 else:
