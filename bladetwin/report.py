@@ -372,6 +372,16 @@ def _joints(summary: dict) -> list[list[_Cell]]:
         for k in ("area_fraction_L_pct", "area_fraction_R_pct", "reference_area_L_pct", "reference_area_R_pct"):
             v = j.get(k)
             row.append(_Cell(MISSING, title="no reference") if v is None else _Cell(format_number(v), numeric=True))
+        v = j.get("beyond_family_pct")
+        if v is None:
+            row.append(_Cell(MISSING, title="not identified by the k-NN"))
+        elif j.get("outside_family"):
+            row.append(_Cell(format_number(v) + " ⚠", numeric=True,
+                             title="beyond the synthetic pairs' reach by more than twice the ROM's scatter on the "
+                                   "filmed joints: the pattern is the family's nearest edge, not a match"))
+        else:
+            row.append(_Cell(format_number(v), numeric=True,
+                             title="within reach of the synthetic pairs, or within twice the ROM's scatter"))
         rows.append(row)
     return rows
 

@@ -568,11 +568,13 @@ def _identify_and_validate(campaign, opts, say, timings, t_all, notes, outcomes,
         ok = np.isfinite(features).all(axis=1)
         pats, labels = {}, {}
         match = knn.match(query_matrix(deltas, np.where(np.isfinite(features), features, 0.0)))
+        # How far each feature lies outside what the synthetic pairs reach at the joint's δ, relative.
+        beyond = match.beyond / np.where(ok[:, None], features, 1.0)
         for k, j in enumerate(joints):
             if ok[k]:
                 iL, iR = (int(x) for x in match.label[k, 0])
                 pats[int(j)] = ContactPattern(ds.patterns_L[iL], ds.patterns_R[iR])
-                labels[int(j)] = (iL, iR, float(match.distance[k, 0]))
+                labels[int(j)] = (iL, iR, float(match.distance[k, 0]), beyond[k])
         return pats, match.delta, labels
 
     f_exp = measured[:, feat]
@@ -584,6 +586,23 @@ def _identify_and_validate(campaign, opts, say, timings, t_all, notes, outcomes,
         raise IdentifyError("no disk-one-blade test has all feature modes "
                             f"{[m + 1 for m in feat]} within {100 * MATCH_WINDOW:.0f} % of the dataset's")
     pred_exp, step1_delta, labels_exp = predict(f_exp / (1 + bias[feat]))
+    # A joint whose measured features lie beyond what the synthetic pairs reach, by more than twice the ROM's
+    # scatter on the filmed joints (the model error the bias correction leaves, std per mode), is one the
+    # family does not cover: the k-NN can only return the family's nearest edge for it.
+    tol = 2 * spread[feat]
+    outside = {j: lab[3] for j, lab in labels_exp.items() if j not in known and np.any(np.abs(lab[3]) > tol)}
+    if outside:
+        worst = max(outside, key=lambda j: np.max(np.abs(outside[j]) - tol))
+        m = int(np.argmax(np.abs(outside[worst]) - tol))
+        notes.append(f"Joints {sorted(outside)}: their measured feature frequencies"
+                     f"{' (bias removed)' if opts.bias else ''} lie outside the range the {len(ds.patterns_L)} × "
+                     f"{len(ds.patterns_R)} synthetic pattern pairs reach at their δ, by more than twice the ROM's "
+                     f"scatter on the filmed joints (joint {worst}: {100 * abs(outside[worst][m]):.2f} % on mode "
+                     f"{feat[m] + 1}, scatter {100 * spread[feat[m]]:.2f} %). Their contact is likely outside the "
+                     "synthetic family and their identified pattern its nearest edge, not a match: trust it less, "
+                     "and film one of them to widen the family.")
+    for j, lab in labels_exp.items():
+        labels_exp[j] = (*lab[:4], j in outside)
     pred_raw, _, labels_raw = predict(f_exp) if opts.bias else (pred_exp, None, labels_exp)
     step1 = grid_error(step1_delta, deltas, opts.step_pct / 100)
     pred_num, labels_num = {}, {}

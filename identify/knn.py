@@ -99,6 +99,11 @@ class TwoStepMatch:
         Weighted Euclidean distances of the normalised features (Eqs. 33, 39), dimensionless, ascending.
     label : ndarray, shape (n_queries, n_neighbors) or (n_queries, n_neighbors, n_outputs)
         Training labels of the candidates, e.g. ``(i_L, i_R)`` pairs when fitted on a dataset.
+    beyond : ndarray of float64, shape (n_queries, n_features)
+        How far each query feature lies outside the range of its subset's training features, in the
+        features' units (Hz for a dataset): ``f − max`` above it, ``f − min`` below it (negative), 0 inside.
+        A non-zero value means no training sample reaches the query there: the nearest one is the edge of
+        the family, not a match.
     """
 
     delta: np.ndarray
@@ -106,6 +111,7 @@ class TwoStepMatch:
     index: np.ndarray
     distance: np.ndarray
     label: np.ndarray
+    beyond: np.ndarray | None = None
 
 
 class TwoStepKNN(ClassifierMixin, BaseEstimator):
@@ -281,8 +287,8 @@ class TwoStepKNN(ClassifierMixin, BaseEstimator):
         """μ and σ of Eq. 39 (shape (n_features,) each) in δ subset ``g`` (global ones for ``normalize="dataset"``)."""
         return self._subset_model(int(g))[:2]
 
-    def _subset_model(self, g: int) -> tuple[np.ndarray, np.ndarray, NearestNeighbors]:
-        """(μ, σ, step-2 index) of subset ``g``, built on first use and kept."""
+    def _subset_model(self, g: int) -> tuple[np.ndarray, np.ndarray, NearestNeighbors, np.ndarray, np.ndarray]:
+        """(μ, σ, step-2 index, feature minima, feature maxima) of subset ``g``, built on first use and kept."""
         hit = self._subset_models.get(g)
         if hit is None:
             rows = self.subset_samples_[g]
@@ -293,7 +299,7 @@ class TwoStepKNN(ClassifierMixin, BaseEstimator):
             else:
                 mean, scale = self._global_norm
             Z = (F - mean) / scale * np.sqrt(self.weights_)
-            hit = (mean, scale, NearestNeighbors(algorithm=_ALGORITHM).fit(Z))
+            hit = (mean, scale, NearestNeighbors(algorithm=_ALGORITHM).fit(Z), F.min(axis=0), F.max(axis=0))
             self._subset_models[g] = hit
         return hit
 
@@ -345,16 +351,18 @@ class TwoStepKNN(ClassifierMixin, BaseEstimator):
             subset = np.zeros(n, dtype=int)
         index = np.empty((n, k), dtype=int)
         distance = np.empty((n, k))
+        beyond = np.empty_like(F)
         sqrt_w = np.sqrt(self.weights_)
         for g in np.unique(subset):
             q = np.flatnonzero(subset == g)
-            mean, scale, nn = self._subset_model(int(g))
+            mean, scale, nn, lo, hi = self._subset_model(int(g))
             Z = (F[q] - mean) / scale * sqrt_w
             dist, loc = nn.kneighbors(Z, k)
             index[q], distance[q] = self.subset_samples_[g][loc], dist
+            beyond[q] = np.maximum(F[q] - hi, 0.0) + np.minimum(F[q] - lo, 0.0)
         return TwoStepMatch(
             delta=self.subset_deltas_[subset].copy(), subset=subset, index=index, distance=distance,
-            label=self.classes_[self.sample_class_[index]],
+            label=self.classes_[self.sample_class_[index]], beyond=beyond,
         )
 
     def kneighbors(self, X, n_neighbors: int | None = None, return_distance: bool = True):

@@ -91,6 +91,29 @@ def test_two_steps_match_brute_force_equations(normalize):
     assert np.all(np.diff(m.distance, axis=1) >= 0)  # ranked
 
 
+def test_beyond_measures_how_far_a_query_lies_outside_its_subsets_features():
+    D, F, y = synthetic(seed=5)
+    est = TwoStepKNN(n_delta_modes=2, n_neighbors=1).fit(np.hstack([D, F]), y)
+    g = np.unique(D, axis=0)[2]
+    members = np.all(D == g, axis=1)
+    lo, hi = F[members].min(axis=0), F[members].max(axis=0)
+    inside = 0.5 * (lo + hi)  # inside the bounding box of the subset's features on every axis
+    q = np.array([inside,
+                  [hi[0] + 3.0, inside[1], lo[2] - 7.5],  # above on the first feature, below on the third
+                  F[np.flatnonzero(members)[0]]])  # a training sample itself: on the range, not beyond it
+    m = est.match(np.hstack([np.repeat(g[None], 3, axis=0), q]))
+    assert m.beyond.shape == (3, F.shape[1])
+    np.testing.assert_array_equal(m.beyond[0], 0.0)
+    np.testing.assert_allclose(m.beyond[1], [3.0, 0.0, -7.5], rtol=0, atol=1e-9)
+    np.testing.assert_array_equal(m.beyond[2], 0.0)
+    # Another subset has another range: the same features can be inside one and outside the other.
+    other = np.unique(D, axis=0)[0]
+    lo2, hi2 = F[np.all(D == other, axis=1)].min(axis=0), F[np.all(D == other, axis=1)].max(axis=0)
+    m2 = est.match(np.hstack([other, q[1]])[None])
+    expect = np.maximum(q[1] - hi2, 0) + np.minimum(q[1] - lo2, 0)
+    np.testing.assert_allclose(m2.beyond[0], expect, rtol=0, atol=1e-9)
+
+
 def test_sensitivity_weights_are_pooled_within_subset_std():
     D, F, y = synthetic(seed=3)
     est = TwoStepKNN(n_delta_modes=2, n_neighbors=2).fit(np.hstack([D, F]), y)

@@ -111,7 +111,9 @@ def _summary() -> dict:
         joints.append({"joint": j, "source": "film" if film else "k-NN", "pattern_L": f"SP-{j % 10 + 1}",
                        "pattern_R": f"SP-{(j * 3) % 10 + 1}", "area_fraction_L_pct": 50 + j / 3,
                        "area_fraction_R_pct": 60 - j / 7, "reference_area_L_pct": 51.2 if film else None,
-                       "reference_area_R_pct": 58.9 if film else None})
+                       "reference_area_R_pct": 58.9 if film else None,
+                       "beyond_family_pct": None if film else (0.0 if j % 2 else 0.4567),
+                       "outside_family": None if film else not j % 2})
     case = {"mean_abs_df_pct": 0.7312345, "mean_mac": 0.8512, "n_modes": 54}
     return {
         "campaign": "academic <lab>", "campaign_dir": "/abs/measurements/academic", "kind": "lab",
@@ -251,8 +253,10 @@ def test_heatmap_and_tables(folder, capsys):
     assert not any("style" in c["attrs"] for r in plain[0]["body"] for c in r)
     joints = _table(page, "joints")
     assert len(joints["body"]) == N_BLADES
-    assert [c["text"] for c in joints["body"][2]] == ["3", "film", "SP-4", "SP-10", "51", "59.57", "51.2", "58.9"]
-    assert [c["text"] for c in joints["body"][0]][-2:] == ["—", "—"]
+    assert [c["text"] for c in joints["body"][2]] == ["3", "film", "SP-4", "SP-10", "51", "59.57", "51.2", "58.9",
+                                                      "—"]
+    assert [c["text"] for c in joints["body"][0]][-3:] == ["—", "—", "0"]  # joint 1: within the family's reach
+    assert [c["text"] for c in joints["body"][1]][-1] == "0.4567 ⚠"  # joint 2: flagged
 
 
 def test_missing_figure_is_one_line_exit_2(folder, capsys):

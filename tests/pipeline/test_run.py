@@ -69,8 +69,17 @@ def test_summary_has_every_field_and_the_truth_confirms_the_identification(campa
         if j in known:  # the filmed joints keep their films
             assert row["source"] == "film"
             assert np.array_equal(pats[j - 1].L, known[j].L) and np.array_equal(pats[j - 1].R, known[j].R)
+            assert row["beyond_family_pct"] is None and row["outside_family"] is None
         else:
             assert row["source"] == "k-NN" and row["pattern_L"].startswith("SP-")
+            assert row["beyond_family_pct"] >= 0
+            assert not (row["outside_family"] and row["beyond_family_pct"] == 0)  # flagged only if beyond reach
+    # A joint beyond the synthetic family's reach is named in a note, and only then.
+    outside = [row["joint"] for row in s["joints"] if row["outside_family"]]
+    flagged = [n for n in s["notes"] if "outside the range the" in n]
+    assert bool(flagged) == bool(outside)
+    if outside:
+        assert f"Joints {outside}:" in flagged[0]
 
     cases = s["cases"]
     for key in ("A", "B", "B_no_bias", "C"):
