@@ -710,6 +710,11 @@ def _json_default(o):
     raise TypeError(f"dataset meta value of type {type(o).__name__} is not JSON-serialisable")
 
 
+def _first_line(exc: BaseException) -> str:
+    """The first line of an exception's message, or its type name when the message is empty."""
+    return (str(exc).splitlines() or [type(exc).__name__])[0]
+
+
 _REQUIRED = ("format", "version", "model_key", "grid", "patterns_L", "patterns_R", "feature_modes", "weights",
              "delta_grid", "n_delta_modes", "n_modes")
 
@@ -740,10 +745,10 @@ def load_dataset(path: str | os.PathLike, *, model_key: str | None = None) -> Da
     path = Path(path)
     try:
         pf = pq.ParquetFile(path)
-    except (pa.ArrowInvalid, pa.ArrowIOError, OSError) as exc:
+    except (pa.ArrowException, OSError) as exc:
         if isinstance(exc, FileNotFoundError):
             raise
-        raise IdentifyError(f"{path}: not a readable Parquet dataset ({str(exc).splitlines()[0]})") from None
+        raise IdentifyError(f"{path}: not a readable Parquet dataset ({_first_line(exc)})") from None
     schema = pf.schema_arrow
     raw = (schema.metadata or {}).get(_META_KEY)
     if raw is None:
@@ -797,8 +802,8 @@ def load_dataset(path: str | os.PathLike, *, model_key: str | None = None) -> Da
                 else:
                     out[rows, k] = values
             pos += batch.num_rows
-    except (pa.ArrowInvalid, pa.ArrowIOError, OSError, ValueError, TypeError) as exc:
-        raise IdentifyError(f"{path}: dataset rows cannot be read ({str(exc).splitlines()[0]})") from None
+    except (pa.ArrowException, OSError, ValueError, TypeError) as exc:  # any Arrow fault: refused
+        raise IdentifyError(f"{path}: dataset rows cannot be read ({_first_line(exc)})") from None
     if pos != n:
         raise IdentifyError(f"{path}: the file declares {n} rows but holds {pos}")
     for a in (D, pair, F, *extra.values()):
