@@ -132,6 +132,14 @@ def _need(table: dict, key: str, where: str, kind: type | tuple[type, ...]):
     return value
 
 
+def _read_toml(path: Path) -> dict:
+    """The TOML document at ``path``; CampaignError in one line (file and parser message) if it is not TOML."""
+    try:
+        return tomllib.loads(path.read_text(encoding="utf-8"))
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
+        raise CampaignError(f"{path}: not valid TOML ({' '.join(str(exc).split())})") from None
+
+
 def _grid(value, where: str) -> tuple[int, int]:
     if (not isinstance(value, list) or len(value) != 2
             or not all(isinstance(v, int) and not isinstance(v, bool) and v >= 2 for v in value)):
@@ -201,10 +209,7 @@ def imported_model_table(model: dict, root: Path, where: str) -> tuple[dict, Pat
     path = (root / rel).resolve()
     if not path.is_file():
         raise CampaignError(f"{where}: [model] file = {rel!r}: {path} not found")
-    try:
-        doc = tomllib.loads(path.read_text(encoding="utf-8"))
-    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
-        raise CampaignError(f"{path}: not valid TOML ({' '.join(str(exc).split())})") from None
+    doc = _read_toml(path)
     table = doc.get("model")
     if not isinstance(table, dict):
         raise CampaignError(f"{path}: no [model] table (expected the model.toml of `bladetwin fe export`)")
@@ -267,10 +272,7 @@ def read_campaign(folder: str | Path) -> Campaign:
     path = root / "campaign.toml"
     if not path.is_file():
         raise CampaignError(f"{root}: no campaign.toml (docs/campaign.md describes the manifest)")
-    try:
-        doc = tomllib.loads(path.read_text(encoding="utf-8"))
-    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
-        raise CampaignError(f"{path}: not valid TOML ({exc})") from None
+    doc = _read_toml(path)
     head = _need(doc, "campaign", str(path), dict)
     where = f"{path} [campaign]"
     n_blades = _need(head, "n_blades", where, int)

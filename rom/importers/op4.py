@@ -521,16 +521,20 @@ def _dense_segment(rows: np.ndarray, vals: np.ndarray) -> tuple[int, np.ndarray]
     return first, col
 
 
+def _nonempty_columns(A: sp.csc_matrix):
+    """``(j, rows, values)`` of every column of ``A`` that holds entries (OP4 writes no record for the others)."""
+    for j in range(A.shape[1]):
+        lo, hi = A.indptr[j], A.indptr[j + 1]
+        if lo < hi:
+            yield j, A.indices[lo:hi], A.data[lo:hi]
+
+
 def _write_binary(fh, name: str, A: sp.csc_matrix, sparse: bool, e: str) -> None:
     n_rows, n_cols = A.shape
     i4, f8 = e + "i4", e + "f8"
     head = struct.pack(e + "5i", 24, n_cols, -n_rows if sparse else n_rows, _form_of(A), 2)
     fh.write(head + name.ljust(8).encode("ascii") + struct.pack(e + "i", 24))
-    for j in range(n_cols):
-        lo, hi = A.indptr[j], A.indptr[j + 1]
-        if lo == hi:
-            continue
-        rows, vals = A.indices[lo:hi], A.data[lo:hi]
+    for j, rows, vals in _nonempty_columns(A):
         if not sparse:
             first, col = _dense_segment(rows, vals)
             n = 12 + 8 * col.size
@@ -560,11 +564,7 @@ def _value_lines(vals: np.ndarray) -> str:
 def _write_text(fh, name: str, A: sp.csc_matrix, sparse: bool) -> None:
     n_rows, n_cols = A.shape
     fh.write(f"{n_cols:8d}{-n_rows if sparse else n_rows:8d}{_form_of(A):8d}{2:8d}{name:<8s}1P,3E23.16\n")
-    for j in range(n_cols):
-        lo, hi = A.indptr[j], A.indptr[j + 1]
-        if lo == hi:
-            continue
-        rows, vals = A.indices[lo:hi], A.data[lo:hi]
+    for j, rows, vals in _nonempty_columns(A):
         if not sparse:
             first, col = _dense_segment(rows, vals)
             fh.write(f"{j + 1:8d}{first + 1:8d}{col.size:8d}\n")
