@@ -43,6 +43,9 @@ def register(sub) -> None:
                    help="build the dataset on a local Dask cluster of N worker processes (default: in process)")
     p.add_argument("--scheduler", default=None, metavar="ADDRESS",
                    help="build the dataset on an existing Dask cluster, e.g. tcp://host:8786")
+    p.add_argument("--refine", type=int, default=0, metavar="N",
+                   help="refine each unfilmed joint's k-NN pattern by a compass search of at most N disk-one-blade "
+                        "solves (beyond the paper; about N × 0.15 s per joint and input; default: off)")
     p.add_argument("--json", action="store_true", help="print summary.json instead of the short summary")
     p.add_argument("--quiet", action="store_true", help="no progress on stderr")
     p.set_defaults(func=_cmd_run)
@@ -51,10 +54,11 @@ def register(sub) -> None:
 def _check_args(args) -> None:
     for name, v, ok in (("--n", args.n, args.n >= 2), ("--scale", args.scale, args.scale > 0),
                         ("--step", args.step, args.step > 0), ("--features", args.features, args.features >= 1),
-                        ("--workers", args.workers, args.workers >= 1),
+                        ("--workers", args.workers, args.workers >= 1), ("--refine", args.refine, args.refine >= 0),
                         ("--dask-workers", args.dask_workers, args.dask_workers is None or args.dask_workers >= 1)):
         if not ok:
-            raise ValueError(f"{name} {v}: expected a positive value" + (" ≥ 2" if name == "--n" else ""))
+            raise ValueError(f"{name} {v}: expected " + {"--n": "an integer ≥ 2", "--refine": "an integer ≥ 0"}.get(
+                name, "a positive value"))
 
 
 def _cmd_run(args) -> int:
@@ -80,7 +84,8 @@ def _cmd_run(args) -> int:
     out = Path(args.out) if args.out else Path("out") / campaign.name
     opts = RunOptions(cache_dir=Path(args.cache_dir) if args.cache_dir else None, n_patterns=args.n, scale=args.scale,
                       seed=args.seed, step_pct=args.step, n_features=args.features, bias=not args.no_bias,
-                      workers=args.workers, dask_workers=args.dask_workers, scheduler=args.scheduler)
+                      workers=args.workers, dask_workers=args.dask_workers, scheduler=args.scheduler,
+                      refine=args.refine)
     res = run_campaign(campaign, opts, say)
     t_rep = time.perf_counter()
     say(f"writing tables, figures and the report to {out}")

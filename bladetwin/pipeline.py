@@ -21,7 +21,7 @@ import ema
 from identify.dataset import Dataset
 from identify.film import FilmGeometry, FilmMap, contact_pattern, read_film
 from identify.knn import TwoStepKNN, TwoStepMatch, query_matrix
-from identify.sampler import SyntheticPatterns, sample_patterns
+from identify.sampler import PatternSampler, SyntheticPatterns, sample_patterns
 from identify.tracking import ModeTracker
 from rom import cache
 from rom.academic import AcademicParams, BladedDisk, build_bladed_disk
@@ -35,8 +35,8 @@ from .campaign import Campaign, CampaignError, imported_model_table, model_famil
 
 __all__ = [
     "MATCH_WINDOW", "Models", "BladeTests", "Prediction", "model_params", "load_model", "load_model_file",
-    "reduced_models", "read_films", "film_patterns", "synthesize", "blade_tests", "d1b_tests", "match_to_reference",
-    "subset_reference",
+    "reduced_models", "read_films", "film_patterns", "synthesize", "family_samplers", "blade_tests", "d1b_tests",
+    "match_to_reference", "subset_reference",
     "known_bias", "measured_tracked", "filmed_frequencies", "bias_spread", "predict_joints", "mean_known_pattern",
     "query_deltas", "tracker",
 ]
@@ -165,6 +165,13 @@ def synthesize(films: dict[int, tuple[FilmMap, FilmMap]], *, n_patterns: int = 1
     R = [b for _, b in films.values()]
     threshold = (float(np.mean([m.level for m in L])), float(np.mean([m.level for m in R])))
     return sample_patterns(L, R, n_patterns=n_patterns, scale=scale, threshold=threshold, random_state=seed)
+
+
+def family_samplers(films: dict[int, tuple[FilmMap, FilmMap]]) -> tuple[PatternSampler, PatternSampler]:
+    """The fitted PCA samplers (L, R) behind :func:`synthesize`'s patterns, for :func:`identify.refine_pattern`."""
+    sides = ([a for a, _ in films.values()], [b for _, b in films.values()])
+    return tuple(PatternSampler(threshold=float(np.mean([m.level for m in maps]))).fit(maps)  # type: ignore[return-value]
+                 for maps in sides)
 
 
 @dataclass(frozen=True, eq=False)

@@ -164,9 +164,11 @@ def write_outputs(res: RunResult, out: Path, *, command: str = "bladetwin run") 
         p = res.final_patterns[j - 1]
         aL, aR = (float(a) for a in contact_area_fraction(np.stack([p.L, p.R])))
         lab = labels.get(j)
-        src = "film" if j in known else ("k-NN" if lab else "baseline")
-        pl = "film" if j in known else (_label(lab[0]) if lab else "mean known")
-        pr = "film" if j in known else (_label(lab[1]) if lab else "mean known")
+        src = "film" if j in known else (("k-NN + refinement" if res.options.refine else "k-NN") if lab else "baseline")
+        # a refined pattern starts from this pair and leaves it: say so in its label
+        tag = " (refined)" if res.options.refine else ""
+        pl = "film" if j in known else (_label(lab[0]) + tag if lab else "mean known")
+        pr = "film" if j in known else (_label(lab[1]) + tag if lab else "mean known")
         rL = rR = None
         if ref is not None:
             rL, rR = (float(a) for a in contact_area_fraction(np.stack([ref[j - 1].L, ref[j - 1].R])))
@@ -352,6 +354,7 @@ def summary_of(res: RunResult, command: str) -> dict:
                  "joints": [j for j in c.known_joints if j in set(res.joints.tolist())]},
         "cases": res.cases, "paper_table8": PAPER_TABLE8, "notes": list(res.notes),
         "settings": {"n_patterns": res.options.n_patterns, "scale": res.options.scale, "seed": res.options.seed,
-                     "step_pct": res.options.step_pct, "n_features": res.options.n_features},
+                     "step_pct": res.options.step_pct, "n_features": res.options.n_features,
+                     "refine_max_solves": res.options.refine},
         "timings_s": {k: round(v, 2) for k, v in res.timings_s.items()},
     })

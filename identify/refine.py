@@ -1,0 +1,252 @@
+"""Local refinement of an identified pattern pair: a compass search in the PCA family and the contact level.
+
+Beyond the paper. The two-step k-NN (:mod:`identify.knn`) picks the best of the dataset's pre-drawn pattern
+pairs (100 by default, §6.1), so its answer can be no closer to a joint than the nearest of them. Here the
+k-NN's pair is the start of a local search over the same synthetic family, continuously:
+
+* the PCA coefficients κ of each flank side (Eq. 32: map = μ + V κ), in units of the known coefficients'
+  standard deviations σ_z (Eq. 30), bounded by ``max_sigma``;
+* the contact level of each side: the threshold that turns the map into a contact grid. The k-NN's family
+  uses one level for all joints (the known films' mean). A joint seated deeper or clamped harder has a
+  larger contact area for the same pressure shape, and lowering the level is how the film's map shows it.
+  Its unit is the standard deviation of the known maps' values.
+
+Each candidate is scored by a direct, MAC-tracked d1b solve (:meth:`identify.tracking.ModeTracker.track`) at
+the joint's blade δ: the mean absolute relative error on the feature modes against the target frequencies.
+The search polls ± one step along every coordinate, moves to the best candidate if it improves the score
+(and doubles that coordinate's step, up to 4× its first, since a joint far from the start needs long moves),
+and halves the steps otherwise (a compass search; Kolda, Lewis & Torczon, SIAM Review 45, 2003). Thresholded
+grids are piecewise constant in (κ, level), so candidates that give grids already scored are free; only new
+grids count against ``max_solves``. Every step is deterministic: the same inputs give the same pattern.
+
+The search only ever accepts a better score, so the refined pattern reproduces the target features at least
+as well as its start. Three frequencies cannot pin down a pattern: a better feature match is not always a
+closer contact area (docs/identify.md gives the figures on the virtual campaigns).
+"""
+
+from __future__ import annotations
+
+import numbers
+from dataclasses import dataclass
+
+import numpy as np
+
+from rom.contact import ContactPattern
+
+from .errors import IdentifyError
+from .sampler import PatternSampler, _non_collinear
+from .tracking import ModeTracker
+
+__all__ = ["RefinedPattern", "refine_pattern"]
+
+#: First step along a PCA coordinate, in σ_z.
+KAPPA_STEP = 0.5
+#: First step of the contact level, in standard deviations of the known maps' values.
+LEVEL_STEP = 0.15
+
+
+@dataclass(frozen=True, eq=False)
+class RefinedPattern:
+    """The result of :func:`refine_pattern` for one joint.
+
+    Attributes
+    ----------
+    pattern : rom.ContactPattern
+        The refined contact grids.
+    kappa_L, kappa_R : ndarray of float64, shape (k_L,) and (k_R,)
+        Their PCA coefficients (Eq. 32).
+    level_L, level_R : float
+        Their contact levels (thresholds on the maps' scale).
+    error_pct : float
+        Mean absolute relative error of the tracked feature frequencies against the target, %.
+    start_error_pct : float
+        The same for the start pattern.
+    n_solves : int
+        Direct d1b solves spent, the start's included.
+    """
+
+    pattern: ContactPattern
+    kappa_L: np.ndarray
+    kappa_R: np.ndarray
+    level_L: float
+    level_R: float
+    error_pct: float
+    start_error_pct: float
+    n_solves: int
+
+
+def _known_std(sampler: PatternSampler) -> float:
+    """Standard deviation of the known maps' values, rebuilt from the PCA (exact: k = n_known − 1 keeps all)."""
+    maps = sampler.mean_ + sampler.scores_ @ sampler.components_
+    s = float(np.std(maps))
+    return s if s > 0 else 1.0
+
+
+def _next_crossing(excess: np.ndarray, rate: np.ndarray) -> float:
+    """Smallest h > 0 at which some node of ``excess + h · rate`` changes sign (contact ⇔ excess > 0), a hair
+    beyond it; inf if none does.
+
+    Parameters
+    ----------
+    excess : ndarray, shape (n_nodes,)
+        Map value minus level per node.
+    rate : ndarray, shape (n_nodes,)
+        Its change per unit of the search coordinate, in the direction polled.
+    """
+    on = excess > 0
+    with np.errstate(divide="ignore", invalid="ignore"):
+        h = np.where(on & (rate < 0), -excess / rate, np.where(~on & (rate > 0), -excess / rate, np.inf))
+    h = h[h >= 0]
+    return float(h.min() * (1 + 1e-9) + 1e-12) if h.size else np.inf
+
+
+def _check(tracker, samplers, target_hz, feature_modes, max_solves, max_sigma, tol_pct) -> tuple[np.ndarray, list[int]]:
+    if not isinstance(tracker, ModeTracker):
+        raise IdentifyError(f"tracker must be an identify.ModeTracker, got {type(tracker).__name__}")
+    for side, s in zip("LR", samplers, strict=True):
+        if not isinstance(s, PatternSampler) or not hasattr(s, "components_"):
+            raise IdentifyError(f"sampler_{side} must be a fitted identify.PatternSampler")
+    if samplers[0].grid_shape_ != samplers[1].grid_shape_:
+        raise IdentifyError(f"the L and R samplers have different grids: {samplers[0].grid_shape_} and "
+                            f"{samplers[1].grid_shape_}")
+    feats = [int(m) for m in np.atleast_1d(feature_modes)]
+    if not feats or any(not 0 <= m < tracker.n_modes for m in feats):
+        raise IdentifyError(f"feature_modes must be 0-based mode indices in 0..{tracker.n_modes - 1}, got "
+                            f"{list(np.atleast_1d(feature_modes))}")
+    target = np.asarray(target_hz, dtype=np.float64).ravel()
+    if target.shape != (len(feats),) or not np.all(np.isfinite(target)) or np.any(target <= 0):
+        raise IdentifyError(f"target_hz must hold {len(feats)} positive, finite frequencies (one per feature "
+                            f"mode), got {np.asarray(target_hz).tolist()}")
+    if isinstance(max_solves, bool) or not isinstance(max_solves, numbers.Integral) or max_solves < 1:
+        raise IdentifyError(f"max_solves must be a positive integer, got {max_solves!r}")
+    if not (isinstance(max_sigma, numbers.Real) and max_sigma > 0):
+        raise IdentifyError(f"max_sigma must be a positive number, got {max_sigma!r}")
+    if not (isinstance(tol_pct, numbers.Real) and tol_pct >= 0):
+        raise IdentifyError(f"tol_pct must be a number ≥ 0, got {tol_pct!r}")
+    return target, feats
+
+
+def refine_pattern(
+    tracker: ModeTracker,
+    sampler_L: PatternSampler,
+    sampler_R: PatternSampler,
+    target_hz,
+    feature_modes,
+    start_L,
+    start_R,
+    *,
+    delta=None,
+    max_solves: int = 100,
+    max_sigma: float = 4.0,
+    tol_pct: float = 0.0,
+) -> RefinedPattern:
+    """Refine one joint's pattern pair by a compass search (module docstring).
+
+    Parameters
+    ----------
+    tracker : ModeTracker
+        The dataset's tracker (:meth:`ModeTracker.from_dataset`), so frequencies are tracked as the k-NN's.
+    sampler_L, sampler_R : PatternSampler
+        The fitted samplers of the synthetic family, per flank side; their ``threshold_`` is the start level.
+    target_hz : array_like, shape (n_features,)
+        The joint's frequencies of the feature modes, Hz (measured and bias-corrected, or the numerical input).
+    feature_modes : sequence of int, length n_features
+        0-based indices into the tracked modes (``Dataset.feature_modes``).
+    start_L, start_R : array_like, shape (rows, cols)
+        Grayscale maps of the start pair, e.g. the k-NN's synthetic pair (``SyntheticPatterns.gray_L[i_L]``).
+        They are projected on the PCA (Eq. 29).
+    delta : float or array_like, optional
+        The joint's blade δ (relative; a vector perturbs the first modes), as in :meth:`ModeTracker.track`.
+    max_solves : int
+        Most direct d1b solves, the start's included. Default 100 (about 13 s at the default level).
+    max_sigma : float
+        Bound on every PCA coordinate, |κ_z| ≤ max_sigma · σ_z. Default 4.
+    tol_pct : float
+        Stop once the error is at most this, %. For measured targets, the model error's size (e.g. the ROM's
+        scatter against the filmed joints): fitting a measurement closer than its model error fits that
+        error, not the contact (the discrepancy principle). Default 0: the numerical input has none.
+
+    Returns
+    -------
+    RefinedPattern
+
+    Raises
+    ------
+    IdentifyError
+        Unfitted samplers, grids that differ, a target or feature list of the wrong size, bad limits, or a
+        start pair that is not a valid contact pattern.
+    """
+    samplers = (sampler_L, sampler_R)
+    target, feats = _check(tracker, samplers, target_hz, feature_modes, max_solves, max_sigma, tol_pct)
+    kappa0 = [s.transform(np.asarray(g, np.float64)[None])[0] for s, g in zip(samplers, (start_L, start_R),
+                                                                                strict=True)]
+    k = [len(x) for x in kappa0]
+    sig = [np.where(s.score_std_ > 0, s.score_std_, 1.0) for s in samplers]
+    lev_unit = [_known_std(s) for s in samplers]
+    # Search coordinates: κ_L/σ_L, κ_R/σ_R, then the two level offsets in their units.
+    x = np.concatenate([kappa0[0] / sig[0], kappa0[1] / sig[1], [0.0, 0.0]])
+    step0 = np.concatenate([np.full(k[0] + k[1], KAPPA_STEP), [LEVEL_STEP, LEVEL_STEP]])
+    step = step0.copy()
+    n_nodes = int(np.prod(sampler_L.grid_shape_))
+
+    def decode(x: np.ndarray) -> tuple[np.ndarray, np.ndarray, float, float, np.ndarray, np.ndarray]:
+        kL, kR = x[: k[0]] * sig[0], x[k[0]: k[0] + k[1]] * sig[1]
+        tL = sampler_L.threshold_ + x[-2] * lev_unit[0]
+        tR = sampler_R.threshold_ + x[-1] * lev_unit[1]
+        gL = sampler_L.inverse_transform(kL[None])[0] > tL
+        gR = sampler_R.inverse_transform(kR[None])[0] > tR
+        return kL, kR, float(tL), float(tR), gL, gR
+
+    scores: dict[bytes, float] = {}
+    bound = np.maximum(max_sigma, np.abs(x[:-2]))  # a start beyond the bound stays allowed
+
+    def score(x: np.ndarray) -> float:
+        if np.any(np.abs(x[:-2]) > bound):
+            return np.inf
+        *_, gL, gR = decode(x)
+        key = gL.tobytes() + gR.tobytes()
+        if key not in scores:
+            valid = all(0 < g.sum() < n_nodes and _non_collinear(g) for g in (gL, gR))
+            if not valid:
+                scores[key] = np.inf
+            elif sum(np.isfinite(v) for v in scores.values()) >= max_solves:
+                return np.inf  # out of budget: not scored, not cached
+            else:
+                f = tracker.track(ContactPattern(gL, gR), delta).frequencies_hz[feats]
+                scores[key] = float(np.mean(np.abs(f / target - 1)))
+        return scores[key]
+
+    best = score(x)
+    if not np.isfinite(best):
+        raise IdentifyError("the start pair is not a valid contact pattern (empty, full or collinear grid)")
+    start = best
+
+    def spent() -> int:
+        return sum(np.isfinite(v) for v in scores.values())
+
+    # Rates of (map − level) per unit of each search coordinate, per side: grids change only where a node's
+    # value crosses its level, so every poll goes at least to the next crossing (no poll repeats the grid).
+    comps = (sampler_L.components_, sampler_R.components_)
+    rates = [(0, sig[0][z] * comps[0][z]) for z in range(k[0])]
+    rates += [(1, sig[1][z] * comps[1][z]) for z in range(k[1])]
+    rates += [(0, np.full(n_nodes, -lev_unit[0])), (1, np.full(n_nodes, -lev_unit[1]))]
+
+    while spent() < max_solves and step.max() >= KAPPA_STEP / 64 and 100 * best > tol_pct:
+        kL, kR, tL, tR, _, _ = decode(x)
+        excess = ((sampler_L.mean_ + kL @ comps[0]) - tL, (sampler_R.mean_ + kR @ comps[1]) - tR)
+        cands = []
+        for z, (side, g) in enumerate(rates):
+            for sign in (1.0, -1.0):
+                c = x.copy()
+                c[z] += sign * max(step[z], _next_crossing(excess[side], sign * g))
+                cands.append(c)
+        vals = [score(c) for c in cands]
+        i = int(np.argmin(vals))
+        if vals[i] < best:
+            # a successful direction is worth a longer stride next time: far-off joints need long moves
+            best, x = vals[i], cands[i]
+            step[i // 2] = min(2 * step[i // 2], 4 * step0[i // 2])
+        else:
+            step = step / 2
+    kL, kR, tL, tR, gL, gR = decode(x)
+    return RefinedPattern(ContactPattern(gL, gR), kL, kR, tL, tR, 100 * best, 100 * start, int(spent()))
