@@ -698,8 +698,8 @@ def _identify_and_validate(campaign, opts, say, timings, t_all, notes, outcomes,
             pred_num = refined["numerical"][0]
         notes.append("Unfilmed joints' patterns refined after the k-NN by a compass search in the synthetic family "
                      f"and the contact level (≤ {opts.refine} d1b solves each, stopping at the model error: "
-                     f"{tol_exp:.3f} % with the bias correction; beyond the paper). Mean feature error, k-NN pair → "
-                     "refined: " + "; ".join(
+                     f"{tol_exp:.3f} %{' with the bias correction' if opts.bias else ''}; beyond the paper). Mean "
+                     "feature error, k-NN pair → refined: " + "; ".join(
                          f"{k.replace('_', ' ')} input {b:.3f} % → {a:.3f} %" for k, (_, b, a) in refined.items()))
 
     def final(pred: dict[int, ContactPattern]) -> list[ContactPattern]:
