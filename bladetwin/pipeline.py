@@ -161,17 +161,21 @@ def synthesize(films: dict[int, tuple[FilmMap, FilmMap]], *, n_patterns: int = 1
     The maps are thresholded at the known films' mean contact level per side (each film's own level is how
     the lab read it; a histogram rule such as Otsu misreads films whose threshold comes from calibration).
     """
-    L = [a for a, _ in films.values()]
-    R = [b for _, b in films.values()]
-    threshold = (float(np.mean([m.level for m in L])), float(np.mean([m.level for m in R])))
+    (L, R), threshold = _family_maps(films)
     return sample_patterns(L, R, n_patterns=n_patterns, scale=scale, threshold=threshold, random_state=seed)
+
+
+def _family_maps(films: dict[int, tuple[FilmMap, FilmMap]]) -> tuple[tuple[list, list], tuple[float, float]]:
+    """The known films' maps per side (L, R) and each side's contact threshold, their mean level."""
+    sides = ([a for a, _ in films.values()], [b for _, b in films.values()])
+    return sides, tuple(float(np.mean([m.level for m in maps])) for maps in sides)  # type: ignore[return-value]
 
 
 def family_samplers(films: dict[int, tuple[FilmMap, FilmMap]]) -> tuple[PatternSampler, PatternSampler]:
     """The fitted PCA samplers (L, R) behind :func:`synthesize`'s patterns, for :func:`identify.refine_pattern`."""
-    sides = ([a for a, _ in films.values()], [b for _, b in films.values()])
-    return tuple(PatternSampler(threshold=float(np.mean([m.level for m in maps]))).fit(maps)  # type: ignore[return-value]
-                 for maps in sides)
+    sides, thresholds = _family_maps(films)
+    return tuple(PatternSampler(threshold=t).fit(maps)  # type: ignore[return-value]
+                 for maps, t in zip(sides, thresholds, strict=True))
 
 
 @dataclass(frozen=True, eq=False)

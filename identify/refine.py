@@ -198,6 +198,7 @@ def refine_pattern(
         return kL, kR, float(tL), float(tR), gL, gR
 
     scores: dict[bytes, float] = {}
+    n_solved = [0]  # direct solves so far (invalid grids cost none)
     bound = np.maximum(max_sigma, np.abs(x[:-2]))  # a start beyond the bound stays allowed
 
     def score(x: np.ndarray) -> float:
@@ -209,10 +210,11 @@ def refine_pattern(
             valid = all(0 < g.sum() < n_nodes and _non_collinear(g) for g in (gL, gR))
             if not valid:
                 scores[key] = np.inf
-            elif sum(np.isfinite(v) for v in scores.values()) >= max_solves:
+            elif n_solved[0] >= max_solves:
                 return np.inf  # out of budget: not scored, not cached
             else:
                 f = tracker.track(ContactPattern(gL, gR), delta).frequencies_hz[feats]
+                n_solved[0] += 1
                 scores[key] = float(np.mean(np.abs(f / target - 1)))
         return scores[key]
 
@@ -221,9 +223,6 @@ def refine_pattern(
         raise IdentifyError("the start pair is not a valid contact pattern (empty, full or collinear grid)")
     start = best
 
-    def spent() -> int:
-        return sum(np.isfinite(v) for v in scores.values())
-
     # Rates of (map − level) per unit of each search coordinate, per side: grids change only where a node's
     # value crosses its level, so every poll goes at least to the next crossing (no poll repeats the grid).
     comps = (sampler_L.components_, sampler_R.components_)
@@ -231,9 +230,10 @@ def refine_pattern(
     rates += [(1, sig[1][z] * comps[1][z]) for z in range(k[1])]
     rates += [(0, np.full(n_nodes, -lev_unit[0])), (1, np.full(n_nodes, -lev_unit[1]))]
 
-    while spent() < max_solves and step.max() >= KAPPA_STEP / 64 and 100 * best > tol_pct:
+    while n_solved[0] < max_solves and step.max() >= KAPPA_STEP / 64 and 100 * best > tol_pct:
         kL, kR, tL, tR, _, _ = decode(x)
-        excess = ((sampler_L.mean_ + kL @ comps[0]) - tL, (sampler_R.mean_ + kR @ comps[1]) - tR)
+        excess = (sampler_L.inverse_transform(kL[None]).ravel() - tL,
+                  sampler_R.inverse_transform(kR[None]).ravel() - tR)
         cands = []
         for z, (side, g) in enumerate(rates):
             for sign in (1.0, -1.0):
@@ -249,4 +249,4 @@ def refine_pattern(
         else:
             step = step / 2
     kL, kR, tL, tR, gL, gR = decode(x)
-    return RefinedPattern(ContactPattern(gL, gR), kL, kR, tL, tR, 100 * best, 100 * start, int(spent()))
+    return RefinedPattern(ContactPattern(gL, gR), kL, kR, tL, tR, 100 * best, 100 * start, n_solved[0])
