@@ -13,10 +13,8 @@ Stages, each timed and each cached by the hash of its inputs (a warm re-run reco
 6. **Validation**: geometric, disk–one-blade, and the full assembly's Cases A/B/C (paper §8) beside a
    baseline that gives every unfilmed joint the majority pattern of the films.
 
-Stages overlap where they can (design §8.17): the EMA runs in forked workers while the CB disk builds in a
-forked process of its own; the full-assembly solves that need no identification (they use the FE disk and the
-Rubin blade, not the CB) start as soon as the EMA is done; with ``--refine``, each input's full solve starts as
-soon as that input's searches end, the numerical input's first.
+Stages overlap where they can (design §8.17): the EMA runs in forked workers while the reduced models build,
+and the full-assembly solves that need no identification start beside the dataset build.
 
 Computing lives here; :mod:`bladetwin.run_outputs` writes the tables, figures and the report.
 """
