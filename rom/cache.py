@@ -37,6 +37,8 @@ __all__ = [
     "save_model",
     "load_model",
     "cached",
+    "cache_file",
+    "disk_key",
     "cached_reduce_disk",
     "cached_reduce_blade",
 ]
@@ -143,8 +145,7 @@ def cached(
     cache_dir: str | os.PathLike | None = None,
 ) -> CraigBamptonModel | RubinModel:
     """Load ``<cache_dir>/<kind>-<key>.npz`` if present, otherwise ``build()`` and store it."""
-    folder = Path(cache_dir) if cache_dir is not None else default_cache_dir()
-    path = folder / f"{kind}-{key[:32]}.npz"
+    path = cache_file(kind, key, cache_dir)
     if path.exists():
         try:
             model = load_model(path, key)
@@ -158,6 +159,20 @@ def cached(
     return model
 
 
+def cache_file(kind: str, key: str, cache_dir: str | os.PathLike | None = None) -> Path:
+    """Where :func:`cached` keeps the model of ``kind`` with ``key``: ``<cache_dir>/<kind>-<key[:32]>.npz``."""
+    folder = Path(cache_dir) if cache_dir is not None else default_cache_dir()
+    return folder / f"{kind}-{key[:32]}.npz"
+
+
+def disk_key(bd, slots: Sequence[int] = (1,), n_modes: int = DEFAULT_N_CB_MODES) -> str:
+    """Cache key of :func:`cached_reduce_disk`'s model (kind ``"disk-cb"``): every input of the reduction."""
+    dofs, rots = disk_boundary_dofs(bd, slots)
+    meas = 3 * bd.disk.node_set("meas") + int(bd.disk.meta["meas_direction"]) - 1
+    return hash_inputs("craig_bampton", bd.disk.K, bd.disk.M, dofs, rots, meas, int(n_modes), list(slots),
+                       bd.n_slots, list(bd.params.grid))
+
+
 def cached_reduce_disk(
     bd,
     slots: Sequence[int] = (1,),
@@ -167,11 +182,8 @@ def cached_reduce_disk(
     backend: str = "auto",
 ) -> CraigBamptonModel:
     """:func:`rom.craig_bampton.reduce_disk` through the cache (no full basis is cached)."""
-    dofs, rots = disk_boundary_dofs(bd, slots)
-    meas = 3 * bd.disk.node_set("meas") + int(bd.disk.meta["meas_direction"]) - 1
-    key = hash_inputs("craig_bampton", bd.disk.K, bd.disk.M, dofs, rots, meas, int(n_modes), list(slots),
-                      bd.n_slots, list(bd.params.grid))
-    return cached("disk-cb", key, lambda: reduce_disk(bd, slots, n_modes, backend=backend), cache_dir)
+    return cached("disk-cb", disk_key(bd, slots, n_modes), lambda: reduce_disk(bd, slots, n_modes, backend=backend),
+                  cache_dir)
 
 
 def cached_reduce_blade(

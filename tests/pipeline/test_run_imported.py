@@ -66,7 +66,8 @@ def runs(campaigns):
     out = {}
     for name, camp in (("native", native), ("imported", imported)):
         o = root / f"out_{name}"
-        assert main(["run", str(camp), "--out", str(o), "--cache-dir", str(root / f"cache_{name}"), "--quiet"]) == 0
+        assert main(["run", str(camp), "--refine", "0", "--out", str(o), "--cache-dir", str(root / f"cache_{name}"),
+                     "--quiet"]) == 0
         out[name] = o, json.loads((o / "summary.json").read_text())
     return out
 
