@@ -440,17 +440,19 @@ def _full_path(hybrid_key: str, patterns: list[ContactPattern], deltas: np.ndarr
     return cache_dir / "full" / f"full-{key}.npz"
 
 
-def _disk_job(cache_dir: Path) -> float:
+def _disk_job(job: tuple[Path, bool]) -> float:
     """The CB disk of :data:`_MODELS` ``["bd"]`` built into the cache; returns the seconds it took.
 
-    One BLAS/MKL thread: this process was forked, and once the parent has run MKL's OpenMP thread team
-    (any earlier Pardiso factorization in it), a forked child that enters a threaded Pardiso phase waits
-    forever on that team (seen as a hang of the test suite). The EMA or the full solves hold the other core.
+    ``job`` = (cache folder, forked). In a forked process, one BLAS/MKL thread: once the parent has run MKL's
+    OpenMP thread team (any earlier Pardiso factorization in it), a forked child that enters a threaded
+    Pardiso phase waits forever on that team (seen as a hang of the test suite). The EMA or the full solves
+    hold the other core then.
     """
     from threadpoolctl import threadpool_limits
 
+    cache_dir, forked = job
     t = time.perf_counter()
-    with threadpool_limits(1):
+    with threadpool_limits(1 if forked else None):
         cache.cached_reduce_disk(_MODELS["bd"], (1,), cache_dir=cache_dir)
     return time.perf_counter() - t
 
@@ -634,7 +636,7 @@ def run_campaign(campaign: Campaign, opts: RunOptions = RunOptions(),
         if not cache.cache_file("disk-cb", cache.disk_key(bd), cache_dir).is_file():
             _MODELS["bd"] = bd
             disk_bg = _Background(opts.workers, say, processes=1)
-            disk_job = disk_bg.submit(_disk_job, cache_dir, "Craig–Bampton disk built")
+            disk_job = disk_bg.submit(_disk_job, (cache_dir, disk_bg.pool is not None), "Craig–Bampton disk built")
         rom_s = time.perf_counter() - t1
         if ema_bg is not None:
             ema_bg.wait()

@@ -1,0 +1,58 @@
+"""``bladetwin run``'s forked CB build: it finishes, and builds the same model as this process would.
+
+The CB disk builds in a forked process while the EMA runs (design §8.17). A child forked after its parent has
+run MKL's OpenMP thread team (any earlier Pardiso factorization there, as in a test session or a notebook)
+waited forever in its own threaded Pardiso factorization: the stop-20 suite hang. The child now runs on one
+BLAS thread. The check runs in a subprocess under a timeout, so a regression fails here instead of hanging
+the suite.
+"""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+import textwrap
+
+import numpy as np
+import pytest
+
+from rom.academic import AcademicParams, build_bladed_disk
+from rom.cache import cache_file, cached_reduce_disk, disk_key
+from rom.craig_bampton import reduce_disk
+
+PARAMS = dict(level="coarse", grid=(3, 7), n_blades=6)
+
+SCRIPT = textwrap.dedent(f"""
+    import sys
+    from pathlib import Path
+
+    from rom.academic import AcademicParams, build_bladed_disk
+    from rom.craig_bampton import reduce_disk
+    from bladetwin import run
+
+    bd = build_bladed_disk(AcademicParams(**{PARAMS!r}))
+    reduce_disk(bd, (1,), 20)  # Pardiso in the parent first: MKL's OpenMP team now exists
+    run._MODELS["bd"] = bd
+    bg = run._Background(2, print, processes=1)
+    assert bg.pool is not None, "no fork here"
+    bg.submit(run._disk_job, (Path(sys.argv[1]), True), "Craig–Bampton disk built")
+    bg.wait()
+""")
+
+
+@pytest.mark.skipif(sys.platform == "win32", reason="no fork")
+def test_cb_disk_builds_in_a_forked_process_after_the_parent_ran_pardiso(tmp_path):
+    try:
+        done = subprocess.run([sys.executable, "-c", SCRIPT, str(tmp_path)], capture_output=True, text=True,
+                              timeout=300)
+    except subprocess.TimeoutExpired:
+        pytest.fail("the forked CB build did not finish in 300 s (it takes seconds): the MKL fork hang is back")
+    assert done.returncode == 0, done.stderr[-2000:]
+    # The child's model (read back from the cache) is this process's, to round-off: one BLAS thread there,
+    # MKL's default here.
+    bd = build_bladed_disk(AcademicParams(**PARAMS))
+    assert cache_file("disk-cb", disk_key(bd), tmp_path).is_file()  # read back, not rebuilt here
+    forked = cached_reduce_disk(bd, (1,), cache_dir=tmp_path)
+    here = reduce_disk(bd, (1,))
+    np.testing.assert_allclose(forked.Lambda, here.Lambda, rtol=1e-9)
+    np.testing.assert_allclose(forked.kappa_bb, here.kappa_bb, rtol=1e-9, atol=1e-9 * np.abs(here.kappa_bb).max())
