@@ -419,12 +419,13 @@ def _full_job(job: tuple) -> str:
     return path.name
 
 
-def _hybrid_key(bd, blade) -> str:
-    """Key of the full-assembly hybrid (FE disk + Rubin blades): the disk FE model and the reduced blade.
+def _hybrid_key(disk_key: str, blade: RubinModel) -> str:
+    """Key of the full-assembly hybrid (FE disk + Rubin blades): the disk FE model's key and the reduced blade.
 
     The CB disk takes no part in it, so the solves that need no identification can start before it is built.
+    ``disk_key`` is :func:`rom.cache.disk_key`'s, computed once per run (it hashes the disk's K and M: ~2 s).
     """
-    parts: list = ["full-hybrid", cache.disk_key(bd)]
+    parts: list = ["full-hybrid", disk_key]
     for f in dataclasses.fields(blade):
         v = getattr(blade, f.name)
         if v is not None and f.name not in ("Phi_r", "Phi_f", "Psi_r", "delta"):
@@ -530,10 +531,10 @@ def _refine_stage(sets: dict, joints: np.ndarray, known, sp, films, tracker: Mod
 class _FullSolves:
     """Full-assembly ROM solves, cached by their inputs, run in the background as they are asked for."""
 
-    def __init__(self, bd, blade: RubinModel, deltas: np.ndarray, n_modes: int, cache_dir: Path, workers: int,
-                 say: Callable[[str], None]) -> None:
+    def __init__(self, bd, blade: RubinModel, key: str, deltas: np.ndarray, n_modes: int, cache_dir: Path,
+                 workers: int, say: Callable[[str], None]) -> None:
         (cache_dir / "full").mkdir(parents=True, exist_ok=True)
-        self.hybrid, self.key = (bd, blade), _hybrid_key(bd, blade)
+        self.hybrid, self.key = (bd, blade), key  # key: _hybrid_key's
         self.deltas, self.n_modes, self.cache_dir = deltas, n_modes, cache_dir
         self.say, self.workers = say, workers
         self.paths: dict[str, Path] = {}
@@ -633,7 +634,8 @@ def run_campaign(campaign: Campaign, opts: RunOptions = RunOptions(),
         # The CB disk, the one long build, runs in a forked process of its own. This one then starts the
         # full-assembly solves that need no identification (they use the FE disk, not the CB) as soon as the
         # EMA is done, on the core the EMA leaves, instead of after the CB build.
-        if not cache.cache_file("disk-cb", cache.disk_key(bd), cache_dir).is_file():
+        disk_key = cache.disk_key(bd)
+        if not cache.cache_file("disk-cb", disk_key, cache_dir).is_file():
             _MODELS["bd"] = bd
             disk_bg = _Background(opts.workers, say, processes=1)
             disk_job = disk_bg.submit(_disk_job, (cache_dir, disk_bg.pool is not None), "Craig–Bampton disk built")
@@ -668,7 +670,8 @@ def run_campaign(campaign: Campaign, opts: RunOptions = RunOptions(),
     # alone (measured: both at once took the CB from 190 to 250 s and left a core idle through the dataset).
     solves = None
     try:
-        solves = _FullSolves(bd, blade, delta_all, n_modes, cache_dir, opts.workers, say)
+        solves = _FullSolves(bd, blade, _hybrid_key(disk_key, blade), delta_all, n_modes, cache_dir, opts.workers,
+                             say)
         solves.submit("baseline", [known.get(j, base) for j in range(1, n + 1)])
         if reference is not None and disk_bg is None:
             solves.submit("reference", list(reference))
