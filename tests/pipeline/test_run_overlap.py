@@ -2,7 +2,7 @@
 
 The CB disk builds in a forked process while the EMA runs (design §8.17). A child forked after its parent has
 run MKL's OpenMP thread team (any earlier Pardiso factorization there, as in a test session or a notebook)
-waited forever in its own threaded Pardiso factorization: the stop-20 suite hang. The child now runs on one
+waited forever in its own threaded Pardiso factorization, which hung the test suite. The child now runs on one
 BLAS thread. The check runs in a subprocess under a timeout, so a regression fails here instead of hanging
 the suite.
 """
