@@ -23,7 +23,6 @@ Computing lives here; :mod:`bladetwin.run_outputs` writes the tables, figures an
 
 from __future__ import annotations
 
-import dataclasses
 import hashlib
 import json
 import multiprocessing
@@ -47,6 +46,7 @@ from identify.validation import GridError, ModeComparison, compare_modes, grid_e
 from lab.rig import rom_modal_model
 from rom import cache
 from rom.contact import ContactPattern
+from rom.craig_bampton import reduce_disk
 from rom.fileio import atomic_path
 from rom.mistuning import rom_deltas
 from rom.rubin import RubinModel
@@ -419,20 +419,6 @@ def _full_job(job: tuple) -> str:
     return path.name
 
 
-def _hybrid_key(disk_key: str, blade: RubinModel) -> str:
-    """Key of the full-assembly hybrid (FE disk + Rubin blades): the disk FE model's key and the reduced blade.
-
-    The CB disk takes no part in it, so the solves that need no identification can start before it is built.
-    ``disk_key`` is :func:`rom.cache.disk_key`'s, computed once per run (it hashes the disk's K and M: ~2 s).
-    """
-    parts: list = ["full-hybrid", disk_key]
-    for f in dataclasses.fields(blade):
-        v = getattr(blade, f.name)
-        if v is not None and f.name not in ("Phi_r", "Phi_f", "Psi_r", "delta"):
-            parts += [f.name, v if isinstance(v, (np.ndarray, dict, list, tuple)) else np.asarray(v)]
-    return cache.hash_inputs(*parts)
-
-
 def _full_path(hybrid_key: str, patterns: list[ContactPattern], deltas: np.ndarray, n_modes: int,
                cache_dir: Path) -> Path:
     key = cache.hash_inputs("full", FULL_CACHE_VERSION, hybrid_key,
@@ -529,12 +515,15 @@ def _refine_stage(sets: dict, joints: np.ndarray, known, sp, films, tracker: Mod
 
 
 class _FullSolves:
-    """Full-assembly ROM solves, cached by their inputs, run in the background as they are asked for."""
+    """Full-assembly ROM solves, cached by their inputs, run in the background as they are asked for.
+
+    ``key`` identifies the hybrid they solve (FE disk + Rubin blades: the two models' cache keys).
+    """
 
     def __init__(self, bd, blade: RubinModel, key: str, deltas: np.ndarray, n_modes: int, cache_dir: Path,
                  workers: int, say: Callable[[str], None]) -> None:
         (cache_dir / "full").mkdir(parents=True, exist_ok=True)
-        self.hybrid, self.key = (bd, blade), key  # key: _hybrid_key's
+        self.hybrid, self.key = (bd, blade), key
         self.deltas, self.n_modes, self.cache_dir = deltas, n_modes, cache_dir
         self.say, self.workers = say, workers
         self.paths: dict[str, Path] = {}
@@ -634,7 +623,7 @@ def run_campaign(campaign: Campaign, opts: RunOptions = RunOptions(),
         # The CB disk, the one long build, runs in a forked process of its own. This one then starts the
         # full-assembly solves that need no identification (they use the FE disk, not the CB) as soon as the
         # EMA is done, on the core the EMA leaves, instead of after the CB build.
-        disk_key = cache.disk_key(bd)
+        disk_key = cache.disk_key(bd)  # hashes the disk's K and M (~2 s): once per run
         if not cache.cache_file("disk-cb", disk_key, cache_dir).is_file():
             _MODELS["bd"] = bd
             disk_bg = _Background(opts.workers, say, processes=1)
@@ -670,8 +659,9 @@ def run_campaign(campaign: Campaign, opts: RunOptions = RunOptions(),
     # alone (measured: both at once took the CB from 190 to 250 s and left a core idle through the dataset).
     solves = None
     try:
-        solves = _FullSolves(bd, blade, _hybrid_key(disk_key, blade), delta_all, n_modes, cache_dir, opts.workers,
-                             say)
+        # The solves' cache key is the hybrid's (FE disk + Rubin blades): the CB takes no part in it.
+        hybrid_key = cache.hash_inputs("full-hybrid", disk_key, cache.blade_key(bd))
+        solves = _FullSolves(bd, blade, hybrid_key, delta_all, n_modes, cache_dir, opts.workers, say)
         solves.submit("baseline", [known.get(j, base) for j in range(1, n + 1)])
         if reference is not None and disk_bg is None:
             solves.submit("reference", list(reference))
@@ -681,7 +671,8 @@ def run_campaign(campaign: Campaign, opts: RunOptions = RunOptions(),
             disk_bg.wait()
             if reference is not None:
                 solves.submit("reference", list(reference))
-        models = Models(bd, cache.cached_reduce_disk(bd, (1,), cache_dir=cache_dir), blade)
+        # cached_reduce_disk(bd, (1,)), under the key computed above
+        models = Models(bd, cache.cached("disk-cb", disk_key, lambda: reduce_disk(bd, (1,)), cache_dir), blade)
         timings["rom"] = rom_s + (disk_job.get() if disk_job is not None else time.perf_counter() - t1)
         t0 = time.perf_counter()
         say(f"PCA sampler: {opts.n_patterns} synthetic patterns per flank from {len(films)} filmed joints")

@@ -39,6 +39,7 @@ __all__ = [
     "cached",
     "cache_file",
     "disk_key",
+    "blade_key",
     "cached_reduce_disk",
     "cached_reduce_blade",
 ]
@@ -194,6 +195,11 @@ def cached_reduce_blade(
     backend: str = "auto",
 ) -> RubinModel:
     """:func:`rom.rubin.reduce_blade` through the cache (no full basis is cached)."""
+    return cached("blade-rubin", blade_key(bd, n_modes), lambda: reduce_blade(bd, n_modes, backend=backend),
+                  cache_dir)
+
+
+def blade_key(bd, n_modes: int = DEFAULT_N_FREE_MODES) -> str:
+    """Cache key of :func:`cached_reduce_blade`'s model (kind ``"blade-rubin"``): every input of the reduction."""
     dofs, n_i = blade_boundary_dofs(bd.blade)
-    key = hash_inputs("rubin", bd.blade.K, bd.blade.M, dofs, n_i, int(n_modes), list(bd.params.grid))
-    return cached("blade-rubin", key, lambda: reduce_blade(bd, n_modes, backend=backend), cache_dir)
+    return hash_inputs("rubin", bd.blade.K, bd.blade.M, dofs, n_i, int(n_modes), list(bd.params.grid))
