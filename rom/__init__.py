@@ -10,6 +10,7 @@ Public API (see each module for details):
 - :mod:`rom.calibration`: Young's-modulus calibration
 - :mod:`rom.craig_bampton`, :mod:`rom.rubin`: Craig–Bampton disk and Rubin blade reductions (Eqs. 2–17)
 - :mod:`rom.rom_assembly`: disk–one-blade and full bladed-disk ROMs with mistuning and contact (Eqs. 18–22)
+- :mod:`rom.cyclic`: the cyclic all-slot CB disk (built once) and the full bladed-disk solve on it in seconds
 - :mod:`rom.modal`, :mod:`rom.validation`, :mod:`rom.cache`, :mod:`rom.pattern_io`: dense eigen-solver, ROM-vs-FE
   checks (MAC-paired), the reduced-model cache, contact-pattern files
 - :mod:`rom.errors`: :class:`ROMError`, the one-line errors written for users
@@ -20,6 +21,7 @@ from .calibration import Calibration, calibrate_bladed_disk, calibrate_modulus
 from .component import Component
 from .contact import ContactPattern
 from .craig_bampton import CraigBamptonModel, reduce_disk
+from .cyclic import CyclicDiskModel, reduce_disk_cyclic, solve_full_cyclic
 from .errors import ROMError
 from .fe_assembly import AssemblyModes, FEAssembly, assemble_fe, solve_fe
 from .rom_assembly import ReducedAssembly, assemble_d1b, assemble_full, solve_d1b, solve_full
@@ -35,4 +37,5 @@ __all__ = [
     # The reductors craig_bampton() and rubin() stay in their modules (same names as the modules).
     "CraigBamptonModel", "reduce_disk", "RubinModel", "reduce_blade",
     "ReducedAssembly", "assemble_d1b", "assemble_full", "solve_d1b", "solve_full",
+    "CyclicDiskModel", "reduce_disk_cyclic", "solve_full_cyclic",
 ]

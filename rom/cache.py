@@ -27,6 +27,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from .craig_bampton import DEFAULT_N_CB_MODES, CraigBamptonModel, disk_boundary_dofs, reduce_disk
+from .cyclic import DEFAULT_N_CC, DEFAULT_N_CYCLIC_MODES, CyclicDiskModel, reduce_disk_cyclic
 from .fileio import atomic_path
 from .rubin import DEFAULT_N_FREE_MODES, RubinModel, blade_boundary_dofs, reduce_blade
 
@@ -42,6 +43,8 @@ __all__ = [
     "blade_key",
     "cached_reduce_disk",
     "cached_reduce_blade",
+    "cyclic_disk_key",
+    "cached_reduce_disk_cyclic",
 ]
 
 log = logging.getLogger(__name__)
@@ -49,7 +52,7 @@ log = logging.getLogger(__name__)
 #: Bump when a reductor's output changes for the same inputs.
 FORMAT_VERSION = 1
 
-_MODEL_TYPES = {"CraigBamptonModel": CraigBamptonModel, "RubinModel": RubinModel}
+_MODEL_TYPES = {"CraigBamptonModel": CraigBamptonModel, "RubinModel": RubinModel, "CyclicDiskModel": CyclicDiskModel}
 
 
 def default_cache_dir() -> Path:
@@ -203,3 +206,28 @@ def blade_key(bd, n_modes: int = DEFAULT_N_FREE_MODES) -> str:
     """Cache key of :func:`cached_reduce_blade`'s model (kind ``"blade-rubin"``): every input of the reduction."""
     dofs, n_i = blade_boundary_dofs(bd.blade)
     return hash_inputs("rubin", bd.blade.K, bd.blade.M, dofs, n_i, int(n_modes), list(bd.params.grid))
+
+
+def cyclic_disk_key(bd, n_modes: int = DEFAULT_N_CYCLIC_MODES, n_cc: int = DEFAULT_N_CC, *,
+                    base_key: str | None = None) -> str:
+    """Cache key of :func:`cached_reduce_disk_cyclic`'s model (kind ``"disk-cyclic"``): every input.
+
+    ``base_key``: the disk's :func:`disk_key` (slot 1, default modes) if already computed; it holds the
+    hash of K and M (about 2 s on the default disk), which this key then reuses.
+    """
+    base = disk_key(bd) if base_key is None else base_key
+    dofs, rots = disk_boundary_dofs(bd, range(1, bd.n_slots + 1))
+    return hash_inputs("cyclic_craig_bampton", base, dofs, rots, int(n_modes), int(n_cc))
+
+
+def cached_reduce_disk_cyclic(
+    bd,
+    n_modes: int = DEFAULT_N_CYCLIC_MODES,
+    n_cc: int = DEFAULT_N_CC,
+    *,
+    cache_dir: str | os.PathLike | None = None,
+    key: str | None = None,
+) -> CyclicDiskModel:
+    """:func:`rom.cyclic.reduce_disk_cyclic` through the cache (``key``: a precomputed :func:`cyclic_disk_key`)."""
+    key = cyclic_disk_key(bd, n_modes, n_cc) if key is None else key
+    return cached("disk-cyclic", key, lambda: reduce_disk_cyclic(bd, n_modes, n_cc=n_cc), cache_dir)

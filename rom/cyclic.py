@@ -1,0 +1,569 @@
+"""Full bladed-disk ROM built once per disk and solved in seconds (issue 12, item 4; docs/rom.md §4.2).
+
+The sparse hybrid (:func:`rom.rom_assembly.assemble_full`) refactors the whole 171 k-DOF disk for every set
+of patterns. Here the disk-side work is done once, and each new set of patterns and δ costs dense work on
+a few hundred vectors.
+
+**The disk, once** (:func:`reduce_disk_cyclic`): a Craig–Bampton model with *every* slot's contact grid as
+boundary (N · n_i DOFs, 23 436 for the default disk). Its boundary blocks are block-circulant in the slots'
+own frames, κ_bb[s, t] = C_((s − t) mod N), because the disk is N identical sectors and the slot frames
+rotate with them. So slot 1's n_i constraint modes give every block, at the cost of the one-slot CB; the
+blocks are checked to be circulant to 1e-6 and the disk is refused otherwise. The mass coupling of each
+slot to the fixed-interface modes needs no constraint mode: μ_be = −K_be Φ Λ⁻¹ + M_be Φ, because
+K_ee⁻¹ M_ee Φ = Φ Λ⁻¹. The characteristic-constraint (CC) modes of the boundary, harmonic by harmonic, are
+stored too: eigenvectors of (Ĉ_h, D̂_h), the slot-DFT of the stiffness and mass blocks.
+
+**Each solve** (:func:`solve_full_cyclic`) is a Rayleigh–Ritz on the all-slot CB model with the blades
+(exact contact ties, the blades' Rubin super-elements, Eqs. 19–22), whose K and M are applied block by block
+and never assembled. The Ritz space is refined until it is good enough:
+
+1. start: the disk's fixed-interface modes η (all of them), the lowest CC modes of each harmonic (global
+   shapes of the slots; each blade follows them statically), and in each slot a few local modes of the
+   slot with its blade, the other slots held;
+2. solve the projected pencil (dense), form each wanted mode's residual r = K x − λ M x in the full model;
+3. enrich: each slot gets K_s⁻¹ r_s, its share of the residuals through its local stiffness (a block-Jacobi
+   correction; the dominant directions of the corrections of all wanted modes), and go back to 2.
+
+Local vectors live on one slot's coordinates, so their products with the circulant blocks cost
+N · n_i² per vector; global vectors are kept Euclidean-orthogonal to the local ones (Gram–Schmidt against
+each slot's local block, which preserves the span), so the basis is orthonormal without a global QR.
+The relative residual of every returned mode in the full model is reported.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.linalg as sla
+
+from .academic import BladedDisk
+from .contact import ContactPattern
+from .craig_bampton import _rotate, disk_boundary_dofs
+from .errors import ROMError
+from .fe_assembly import AssemblyModes
+from .modal import dense_modes
+from .rom_assembly import _blade_part, _check_pattern, _deltas, _grid_shape, _meas_labels
+from .rubin import RubinModel
+from .solver import available_backends, factorize, solve_modes_factored
+
+__all__ = [
+    "CyclicDiskModel",
+    "CyclicSolution",
+    "reduce_disk_cyclic",
+    "solve_full_cyclic",
+    "DEFAULT_N_CC",
+    "DEFAULT_N_CYCLIC_MODES",
+    "DEFAULT_N_LOCAL_MODES",
+    "DEFAULT_ROUNDS",
+]
+
+log = logging.getLogger(__name__)
+
+#: Fixed-interface modes of the all-slot disk. Measured on the default disk (docs/rom.md §4.2): 30, 50 and 100
+#: gave the same full-assembly frequencies and MACs to the digits reported; the 40th is near 30 kHz, 25× the
+#: third blade family.
+DEFAULT_N_CYCLIC_MODES = 40
+#: CC modes kept per harmonic (stored with the disk; a solve may use fewer).
+DEFAULT_N_CC = 6
+#: Local modes per slot in the starting Ritz space.
+DEFAULT_N_LOCAL_MODES = 6
+#: Enrichment rounds.
+DEFAULT_ROUNDS = 1
+#: A slot's corrections keep the directions above this fraction of their largest singular value.
+_ENRICH_TOL = 1e-3
+#: Local subspace iterations for the starting local modes.
+_LOCAL_ITERATIONS = 4
+
+
+@dataclass(frozen=True, eq=False)
+class CyclicDiskModel:
+    """Craig–Bampton disk reduced on all N slots of a cyclic disk, stored by its first block column.
+
+    Boundary coordinates of slot s are its contact grid (L then R, row-major, x y z per node) in the slot's
+    own frame, as in :func:`rom.craig_bampton.reduce_disk`.
+
+    Attributes
+    ----------
+    Lambda : ndarray, shape (n_k,)
+        Fixed-interface eigenvalues ω² (rad²/s²), every slot clamped.
+    kappa_col : ndarray, shape (N, n_i, n_i)
+        κ_bb[1 + d, 1]: κ_bb[s, t] = ``kappa_col[(s - t) % N]`` (Eq. 6, block-circulant).
+    mu_col : ndarray, shape (N, n_i, n_i)
+        μ_bb[1 + d, 1], the same way.
+    mu_be : ndarray, shape (N, n_i, n_k)
+        μ_be of each slot (Eq. 6).
+    out_eta : ndarray, shape (N, n_k)
+        Output rows (the disk measurement DOF of each sector) of the fixed-interface modes.
+    out_b1 : ndarray, shape (N, n_i)
+        Output rows of slot 1's constraint modes; slot s's are these with the sectors rolled by s − 1.
+    cc_modes : ndarray, shape (N // 2 + 1, n_i, n_cc), complex
+        The lowest CC modes ψ of each harmonic h: (Ĉ_h − ω² D̂_h) ψ = 0, Ĉ_h = Σ_d C_d e^(−2πi h d / N).
+    cc_mass : ndarray, shape (N // 2 + 1, n_i, n_cc), complex
+        D̂_h ψ (then Ĉ_h ψ = ω² D̂_h ψ).
+    cc_omega2 : ndarray, shape (N // 2 + 1, n_cc)
+        Their eigenvalues ω² (rad²/s²).
+    meta : dict
+    """
+
+    Lambda: np.ndarray
+    kappa_col: np.ndarray
+    mu_col: np.ndarray
+    mu_be: np.ndarray
+    out_eta: np.ndarray
+    out_b1: np.ndarray
+    cc_modes: np.ndarray
+    cc_mass: np.ndarray
+    cc_omega2: np.ndarray
+    meta: dict = field(default_factory=dict)
+
+    @property
+    def n_slots(self) -> int:
+        return int(self.kappa_col.shape[0])
+
+    @property
+    def n_i(self) -> int:
+        return int(self.kappa_col.shape[1])
+
+    @property
+    def n_k(self) -> int:
+        return int(self.Lambda.size)
+
+    def kappa(self, s: int, t: int) -> np.ndarray:
+        """κ_bb[s, t] (slots 1-based), shape (n_i, n_i)."""
+        return self.kappa_col[(s - t) % self.n_slots]
+
+    def mu(self, s: int, t: int) -> np.ndarray:
+        """μ_bb[s, t] (slots 1-based), shape (n_i, n_i)."""
+        return self.mu_col[(s - t) % self.n_slots]
+
+
+def _sym_circulant(col: np.ndarray) -> np.ndarray:
+    """Average each block with the transpose of its mirror: C_d = C_(−d)ᵀ holds for a symmetric matrix."""
+    N = col.shape[0]
+    mirror = col[(-np.arange(N)) % N].transpose(0, 2, 1)
+    return 0.5 * (col + mirror)
+
+
+def reduce_disk_cyclic(
+    bd: BladedDisk,
+    n_modes: int = DEFAULT_N_CYCLIC_MODES,
+    *,
+    n_cc: int = DEFAULT_N_CC,
+    block_size: int = 64,
+    backend: str = "auto",
+) -> CyclicDiskModel:
+    """Cyclic Craig–Bampton model of the academic disk with every slot's grid as boundary (module notes).
+
+    Parameters
+    ----------
+    bd : BladedDisk
+        A disk of N identical sectors (``build_bladed_disk``); slot frames rotate with the sectors.
+    n_modes : int
+        Fixed-interface modes n_k (all slots clamped).
+    n_cc : int
+        CC modes stored per harmonic.
+    block_size : int
+        Right-hand sides per constraint-mode block solve.
+    """
+    t_all = time.perf_counter()
+    N = bd.n_slots
+    dofs, rots = disk_boundary_dofs(bd, range(1, N + 1))
+    n_b = dofs.size
+    n_i = n_b // N
+    n = bd.disk.n_dof
+    if not (isinstance(n_cc, (int, np.integer)) and 1 <= n_cc <= n_i):
+        raise ROMError(f"n_cc must be an integer in 1..{n_i}, got {n_cc!r}")
+    is_b = np.zeros(n, bool)
+    is_b[dofs] = True
+    e = np.flatnonzero(~is_b)
+    K, M = bd.disk.K.tocsr(), bd.disk.M.tocsr()
+    Ke, Me = K[e], M[e]
+    Kee, Keb = Ke[:, e].tocsr(), Ke[:, dofs].tocsc()
+    Mee, Meb = Me[:, e].tocsr(), Me[:, dofs].tocsc()
+    Kbe, Mbe = Keb.T.tocsr(), Meb.T.tocsr()
+    b1 = dofs[:n_i]
+    Kbb1 = K[dofs][:, b1].toarray()
+    Mbb1 = M[dofs][:, b1].toarray()
+    meas = 3 * bd.disk.node_set("meas").ravel() + int(bd.disk.meta["meas_direction"]) - 1
+    pos_e = np.full(n, -1)
+    pos_e[e] = np.arange(e.size)
+    if np.any(pos_e[meas] < 0):
+        raise ROMError("a disk measurement DOF lies on a slot's contact grid; the cyclic CB cannot output it")
+    backend = "pardiso" if backend == "auto" and "pardiso" in available_backends() else backend
+    fac = factorize(Kee, backend)
+    try:
+        t0 = time.perf_counter()
+        sol = solve_modes_factored(Kee, Mee, int(n_modes), fac)
+        Phi, Lam = sol.shapes, sol.omega2
+        log.info("cyclic CB: %d fixed-interface modes (all slots clamped) in %.1f s", n_modes, time.perf_counter() - t0)
+        t0 = time.perf_counter()
+        kap = np.empty((n_b, n_i))
+        mu = np.empty((n_b, n_i))
+        out_b1 = np.empty((meas.size, n_i))
+        # Slot 1's constraint modes and the first block column of Eq. 6, as in craig_bampton (μ_bb's Ψᵀ W_j
+        # as −K_be (K_ee⁻¹ W_j)).
+        for j0 in range(0, n_i, block_size):
+            j1 = min(j0 + block_size, n_i)
+            Psi_j = -np.asarray(fac.solve(Keb[:, j0:j1].toarray())).reshape(e.size, j1 - j0)
+            W = Mee @ Psi_j + Meb[:, j0:j1].toarray()
+            Y = np.asarray(fac.solve(W)).reshape(e.size, j1 - j0)
+            kap[:, j0:j1] = Kbb1[:, j0:j1] + Kbe @ Psi_j
+            mu[:, j0:j1] = -(Kbe @ Y) + Mbe @ Psi_j + Mbb1[:, j0:j1]
+            out_b1[:, j0:j1] = Psi_j[pos_e[meas]]
+        log.info("cyclic CB: slot 1's %d constraint modes in %.1f s", n_i, time.perf_counter() - t0)
+    finally:
+        fac.free()
+    mu_be = -(Kbe @ Phi) / Lam + Mbe @ Phi  # (n_b, n_k)
+    # Slot frames: rows of every slot with their own rotation, columns of slot 1 with slot 1's.
+    kap = _rotate(rots[: n_i // 3], _rotate(rots, kap, True).T, True).T
+    mu = _rotate(rots[: n_i // 3], _rotate(rots, mu, True).T, True).T
+    mu_be = _rotate(rots, mu_be, True)
+    out_b1 = _rotate(rots[: n_i // 3], out_b1.T, True).T
+    kappa_col = _sym_circulant(kap.reshape(N, n_i, n_i))
+    mu_col = _sym_circulant(mu.reshape(N, n_i, n_i))
+    # C_d and C_(−d)ᵀ come from different constraint modes: their difference measures how cyclic the disk is.
+    asym = float(np.max(np.abs(kap.reshape(N, n_i, n_i) - kappa_col)) / np.max(np.abs(kappa_col[0])))
+    if asym > 1e-6:
+        raise ROMError(f"the disk is not cyclic to 1e-6 (its κ_bb blocks differ by {asym:.1e} relative); "
+                       "use the sparse hybrid (rom.rom_assembly.assemble_full)")
+    cc, cc_mass, cc_w2 = _cc_modes(kappa_col, mu_col, int(n_cc))
+    log.info("cyclic CB: n_e=%d, N=%d slots × n_i=%d, n_k=%d; built in %.1f s", e.size, N, n_i, n_modes,
+             time.perf_counter() - t_all)
+    return CyclicDiskModel(
+        Lambda=Lam, kappa_col=kappa_col, mu_col=mu_col, mu_be=mu_be.reshape(N, n_i, -1),
+        out_eta=Phi[pos_e[meas]], out_b1=out_b1, cc_modes=cc, cc_mass=cc_mass, cc_omega2=cc_w2,
+        meta={"n_sectors": N, "grid": list(bd.params.grid), "circulant_asymmetry": asym},
+    )
+
+
+def _cc_modes(kappa_col: np.ndarray, mu_col: np.ndarray, n_cc: int):
+    """The lowest ``n_cc`` CC modes of each harmonic 0..N//2 (eigenvectors of the slot-DFT blocks)."""
+    C_hat = np.fft.fft(kappa_col, axis=0)[: kappa_col.shape[0] // 2 + 1]
+    D_hat = np.fft.fft(mu_col, axis=0)[: kappa_col.shape[0] // 2 + 1]
+    H, n_i = C_hat.shape[:2]
+    psi = np.empty((H, n_i, n_cc), complex)
+    dpsi = np.empty_like(psi)
+    w2 = np.empty((H, n_cc))
+    for h in range(H):
+        A = 0.5 * (C_hat[h] + C_hat[h].conj().T)
+        B = 0.5 * (D_hat[h] + D_hat[h].conj().T)
+        w2[h], psi[h] = sla.eigh(A, B, subset_by_index=[0, n_cc - 1], check_finite=False)
+        dpsi[h] = B @ psi[h]
+    return psi, dpsi, w2
+
+
+@dataclass(frozen=True, eq=False)
+class CyclicSolution:
+    """Modes of the full bladed disk from :func:`solve_full_cyclic`.
+
+    Attributes
+    ----------
+    modes : AssemblyModes
+        Frequencies (Hz) and shapes at the measurement DOFs, labelled as the hybrid's.
+    residuals : ndarray, shape (n_modes,)
+        Relative residual of each mode in the full all-slot CB model with the blades,
+        ‖K x − λ M x‖ / (‖K x‖ + λ ‖M x‖).
+    n_ritz : int
+        Size of the Ritz space of the last round.
+    """
+
+    modes: AssemblyModes
+    residuals: np.ndarray
+    n_ritz: int
+
+
+class _Slot:
+    """One slot with its blade in local coordinates [x (n_i, slot frame), the blade's own coordinates]."""
+
+    def __init__(self, disk: CyclicDiskModel, blade: RubinModel, pattern: ContactPattern, delta, formulation: str,
+                 slot: int):
+        se, iface_pos, contact = _blade_part(blade, pattern, delta, formulation)
+        n_i = disk.n_i
+        nm = se.n_modal
+        n_free = int((~contact).sum())
+        self.n = n_i + nm + n_free
+        idx = np.empty(se.n, np.int64)
+        idx[:nm] = n_i + np.arange(nm)
+        bidx = idx[nm:]
+        bidx[contact] = iface_pos[contact]
+        bidx[~contact] = n_i + nm + np.arange(n_free)
+        self.Kb = np.zeros((self.n, self.n))
+        self.Mb = np.zeros((self.n, self.n))
+        self.Kb[np.ix_(idx, idx)] = se.K
+        self.Mb[np.ix_(idx, idx)] = se.M
+        self.acc = bidx[iface_pos < 0]
+        K = self.Kb.copy()
+        K[:n_i, :n_i] += disk.kappa_col[0]
+        self.M = self.Mb.copy()
+        self.M[:n_i, :n_i] += disk.mu_col[0]
+        # The slot held by the others is positive definite: one Cholesky factor serves the local modes and
+        # every block-Jacobi correction. It is not when the pattern leaves the blade a mechanism.
+        try:
+            self.K_chol = sla.cho_factor(K, check_finite=False)
+            self.own_chol = sla.cho_factor(self.Kb[n_i:, n_i:], check_finite=False)
+        except np.linalg.LinAlgError:
+            raise ROMError(f"slot {slot}: its contact pattern ({int(contact.sum()) // 3} contacting nodes) does not "
+                           "hold the blade (a mechanism); solve this assembly with the sparse hybrid "
+                           "(rom.rom_assembly.solve_full)") from None
+        self.L = np.zeros((self.n, 0))  # orthonormal local basis
+        self.CL = np.zeros((disk.n_slots, n_i, 0))  # κ_bb[t, s] X_s for every slot t
+        self.DL = np.zeros((disk.n_slots, n_i, 0))  # μ_bb[t, s] X_s
+
+
+def _local_modes(slot: _Slot, n_modes: int, seed: int) -> np.ndarray:
+    """Approximate lowest local modes: subspace iteration on the slot's Cholesky factor (a start, not a result)."""
+    X = np.random.default_rng(seed).standard_normal((slot.n, 2 * n_modes))
+    for _ in range(_LOCAL_ITERATIONS):
+        X = sla.cho_solve(slot.K_chol, slot.M @ X, check_finite=False)
+        X, _ = np.linalg.qr(X)
+    return X
+
+
+def _new_local(slot: _Slot, W: np.ndarray, tol: float) -> np.ndarray:
+    """The dominant directions of ``W`` (local coordinates) not yet in the slot's basis, orthonormal."""
+    if slot.L.shape[1]:
+        for _ in range(2):  # CGS2 against the basis already there
+            W = W - slot.L @ (slot.L.T @ W)
+    nrm = np.linalg.norm(W, axis=0)
+    W = W[:, nrm > 0] / nrm[nrm > 0]
+    if W.shape[1] == 0:
+        return W
+    u, sv, _ = np.linalg.svd(W, full_matrices=False)
+    u = u[:, sv > tol * sv[0]]
+    if slot.L.shape[1]:
+        u = u - slot.L @ (slot.L.T @ u)
+        u, _ = np.linalg.qr(u)
+    return u
+
+
+def _append_local(disk: CyclicDiskModel, slots: list[_Slot], new: list[np.ndarray]) -> None:
+    """Append new local columns to every slot's basis, with their products with the circulant blocks.
+
+    κ_bb[t, s] = C_((t − s) mod N): one product of the stacked first block column (N · n_i × n_i) with every
+    slot's new columns side by side reads the blocks once (the products are memory-bound one slot at a time).
+    """
+    N, n_i = disk.n_slots, disk.n_i
+    X = np.hstack([u[:n_i] for u in new])
+    CX = (disk.kappa_col.reshape(N * n_i, n_i) @ X).reshape(N, n_i, -1)
+    DX = (disk.mu_col.reshape(N * n_i, n_i) @ X).reshape(N, n_i, -1)
+    c0 = 0
+    for s, (sl, u) in enumerate(zip(slots, new, strict=True)):
+        cs = slice(c0, c0 + u.shape[1])
+        c0 += u.shape[1]
+        order = (np.arange(N) - s) % N
+        sl.L = np.hstack([sl.L, u])
+        sl.CL = np.concatenate([sl.CL, CX[order][:, :, cs]], axis=2)
+        sl.DL = np.concatenate([sl.DL, DX[order][:, :, cs]], axis=2)
+
+
+def _global_cc(disk: CyclicDiskModel, n_cc: int):
+    """Real global CC vectors at the slots and their products with the circulant K and M blocks.
+
+    Returns
+    -------
+    G, CG, DG : ndarray, shape (N, n_i, n_g)
+    """
+    N = disk.n_slots
+    ph = np.exp(2j * np.pi * np.outer(np.arange(N), np.arange(disk.cc_modes.shape[0])) / N)  # (N, H)
+    G, CG, DG = [], [], []
+    for h in range(disk.cc_modes.shape[0]):
+        psi = disk.cc_modes[h][:, :n_cc]
+        dpsi = disk.cc_mass[h][:, :n_cc]
+        w2 = disk.cc_omega2[h][:n_cc]
+        # A harmonic vector x_s = ψ e^(2πi h s / N) has (C x)_s = e^(2πi h s / N) Ĉ_h ψ = ω² (D x)_s.
+        x = ph[:, h, None, None] * psi[None]
+        dx = ph[:, h, None, None] * dpsi[None]
+        parts = [np.real] if h == 0 or 2 * h == N else [np.real, np.imag]
+        for part in parts:
+            G.append(part(x))
+            DG.append(part(dx))
+            CG.append(part(dx) * w2)
+    return np.concatenate(G, axis=2), np.concatenate(CG, axis=2), np.concatenate(DG, axis=2)
+
+
+def solve_full_cyclic(
+    disk: CyclicDiskModel,
+    blade: RubinModel,
+    patterns: Mapping[int, ContactPattern] | ContactPattern,
+    deltas=None,
+    *,
+    n_modes: int | None = None,
+    n_cc: int | None = None,
+    n_local_modes: int = DEFAULT_N_LOCAL_MODES,
+    rounds: int = DEFAULT_ROUNDS,
+    formulation: str = "exact",
+) -> CyclicSolution:
+    """Lowest elastic modes of the full bladed disk on a :class:`CyclicDiskModel` (module notes).
+
+    Parameters
+    ----------
+    disk : CyclicDiskModel
+    blade : RubinModel
+        From :func:`rom.rubin.reduce_blade`, on the disk's grid.
+    patterns : mapping slot → ContactPattern (every slot 1..N), or one pattern for all
+    deltas : None, array_like of shape (N, k), or a sequence of N per-blade δ (Eq. 19)
+    n_modes : int, optional
+        Elastic modes wanted (default 3 N, three blade families).
+    n_cc : int, optional
+        CC modes per harmonic in the starting space (default: all the disk stores).
+    n_local_modes : int
+        Local modes per slot in the starting space.
+    rounds : int
+        Enrichment rounds (module notes).
+    formulation : {"exact", "paper"}
+    """
+    t0 = time.perf_counter()
+    N, n_i = disk.n_slots, disk.n_i
+    grid = _grid_shape(blade)
+    if tuple(disk.meta.get("grid", grid)) != grid:
+        raise ROMError(f"blade model grid {grid} differs from the cyclic disk's {tuple(disk.meta['grid'])}")
+    if isinstance(patterns, ContactPattern):
+        patterns = {s: patterns for s in range(1, N + 1)}
+    missing = sorted(set(range(1, N + 1)) - set(patterns))
+    if missing:
+        raise ROMError(f"patterns must give every slot 1..{N}; missing {missing}")
+    dl = _deltas(deltas, N, blade.m)
+    n_modes = 3 * N if n_modes is None else int(n_modes)
+    n_cc = disk.cc_modes.shape[2] if n_cc is None else int(n_cc)
+    slots = [_Slot(disk, blade, _check_pattern(patterns[s], grid, s), dl.get(s), formulation, s)
+             for s in range(1, N + 1)]
+    _append_local(disk, slots, [_new_local(sl, _local_modes(sl, n_local_modes, k), 0.0) for k, sl in enumerate(slots)])
+    G0, CG0, DG0 = _global_cc(disk, n_cc)
+    # Each blade follows the global shapes statically: own = −K_oo⁻¹ K_ox x (no energy for rigid motion).
+    G0own = [-sla.cho_solve(sl.own_chol, sl.Kb[n_i:, :n_i] @ G0[k], check_finite=False) for k, sl in enumerate(slots)]
+    t1 = time.perf_counter()
+    for rnd in range(rounds + 1):
+        lam, Y, parts = _ritz(disk, slots, G0, CG0, DG0, G0own, n_modes)
+        R, KVn, MVn = _residual_rows(disk, slots, parts, Y, lam)
+        res = np.linalg.norm(np.concatenate(R, axis=0), axis=0) / (KVn + lam * MVn)
+        log.info("cyclic full solve: round %d, Ritz space %d, max relative residual %.1e", rnd, Y.shape[0], res.max())
+        if rnd == rounds:
+            break
+        _append_local(disk, slots, [_new_local(sl, sla.cho_solve(sl.K_chol, R[1 + k], check_finite=False), _ENRICH_TOL)
+                                    for k, sl in enumerate(slots)])
+    f_hz = np.sqrt(np.clip(lam, 0.0, None)) / (2 * np.pi)
+    meas = _outputs(disk, slots, parts, Y)
+    labels = _meas_labels(N, range(1, N + 1), blade.n_b - blade.n_interface)
+    log.info("cyclic full solve: start %.1f s, Ritz rounds %.1f s", t1 - t0, time.perf_counter() - t1)
+    return CyclicSolution(AssemblyModes(f_hz, meas, labels), res, int(Y.shape[0]))
+
+
+def _ritz(disk, slots, G0, CG0, DG0, G0own, n_modes):
+    """Rayleigh–Ritz on [η, every slot's local basis, the global CC vectors made orthogonal to them]."""
+    N, n_i, n_k = disk.n_slots, disk.n_i, disk.n_k
+    # Global vectors minus their local components (span kept, now orthogonal to every local basis).
+    coef = [sl.L.T @ np.vstack([G0[k], G0own[k]]) for k, sl in enumerate(slots)]
+    Gx = G0.copy()
+    Gown = [g.copy() for g in G0own]
+    CG, DG = CG0.copy(), DG0.copy()
+    for k, sl in enumerate(slots):
+        loc = sl.L @ coef[k]
+        Gx[k] -= loc[:n_i]
+        Gown[k] -= loc[n_i:]
+        CG -= sl.CL @ coef[k]
+        DG -= sl.DL @ coef[k]
+    # Orthonormalise what is left (directions already in the local spaces drop out).
+    flat = np.vstack([Gx.reshape(N * n_i, -1)] + Gown)
+    u, sv, vt = np.linalg.svd(flat, full_matrices=False)
+    keep = sv > 1e-6 * sv[0]  # what is left of a dropped direction is within 1e-6 of the local spaces
+    T = vt[keep].T / sv[keep]  # Gflat @ T = u[:, keep]
+    Gx, CG, DG = Gx @ T, CG @ T, DG @ T
+    Gown = [g @ T for g in Gown]
+    Gflat = Gx.reshape(N * n_i, -1)
+    mu_be_flat = disk.mu_be.reshape(N * n_i, n_k)
+    n_g = T.shape[1]
+    sizes = [n_k] + [sl.L.shape[1] for sl in slots] + [n_g]
+    off = np.concatenate([[0], np.cumsum(sizes)])
+    n_red = int(off[-1])
+    Kr = np.zeros((n_red, n_red))
+    Mr = np.zeros((n_red, n_red))
+    Kr[np.arange(n_k), np.arange(n_k)] = disk.Lambda
+    Mr[np.arange(n_k), np.arange(n_k)] = 1.0
+    gsl = slice(off[-2], off[-1])
+    # Global–global: disk blocks, then each blade on its slot.
+    Kr[gsl, gsl] = Gflat.T @ CG.reshape(N * n_i, -1)
+    Mr[gsl, gsl] = Gflat.T @ DG.reshape(N * n_i, -1)
+    Mr[:n_k, gsl] = mu_be_flat.T @ Gflat
+    for k, sl in enumerate(slots):
+        ls = slice(off[1 + k], off[2 + k])
+        X = sl.L[:n_i]
+        gl = np.vstack([Gx[k], Gown[k]])
+        Kr[gsl, gsl] += gl.T @ sl.Kb @ gl
+        Mr[gsl, gsl] += gl.T @ sl.Mb @ gl
+        # η–local: mass coupling only (K_ηb = 0 in a CB model).
+        Mr[:n_k, ls] = disk.mu_be[k].T @ X
+        # local–local, every slot pair: X_tᵀ κ_bb[t, s] X_s.
+        for j, sj in enumerate(slots):
+            lj = slice(off[1 + j], off[2 + j])
+            Xj = sj.L[:n_i]
+            Kr[lj, ls] = Xj.T @ sl.CL[j]
+            Mr[lj, ls] = Xj.T @ sl.DL[j]
+        Kr[ls, ls] += sl.L.T @ sl.Kb @ sl.L
+        Mr[ls, ls] += sl.L.T @ sl.Mb @ sl.L
+        # global–local: Gᵀ K L_s = Σ_t G_tᵀ κ_bb[t, s] X_s + (slot s's blade).
+        Kr[gsl, ls] = Gflat.T @ sl.CL.reshape(N * n_i, -1) + gl.T @ sl.Kb @ sl.L
+        Mr[gsl, ls] = Gflat.T @ sl.DL.reshape(N * n_i, -1) + gl.T @ sl.Mb @ sl.L
+    # Mirror the blocks filled on one side only, then even out round-off.
+    Mr[gsl, :n_k] = Mr[:n_k, gsl].T
+    Mr[n_k : off[-2], :n_k] = Mr[:n_k, n_k : off[-2]].T
+    Kr[n_k : off[-2], gsl] = Kr[gsl, n_k : off[-2]].T
+    Mr[n_k : off[-2], gsl] = Mr[gsl, n_k : off[-2]].T
+    Kr = 0.5 * (Kr + Kr.T)
+    Mr = 0.5 * (Mr + Mr.T)
+    dm = dense_modes(Kr, Mr, n_modes)
+    lam = (2 * np.pi * dm.frequencies_hz) ** 2
+    parts = {"off": off, "Gx": Gx, "Gown": Gown, "CG": CG, "DG": DG}
+    return lam, dm.shapes, parts
+
+
+def _residual_rows(disk, slots, parts, Y, lam):
+    """Residuals K v − λ M v of the Ritz vectors, by row group: [η, slot 1 local, …, slot N local].
+
+    Also returns ‖K v‖ and ‖M v‖ over all rows.
+    """
+    N, n_i, n_k = disk.n_slots, disk.n_i, disk.n_k
+    off, Gx, Gown, CG, DG = parts["off"], parts["Gx"], parts["Gown"], parts["CG"], parts["DG"]
+    Yg = Y[off[-2] : off[-1]]
+    Ye = Y[:n_k]
+    # x rows of every slot: disk blocks on the global and local parts, μ_be on η.
+    KX = CG @ Yg
+    MX = DG @ Yg + disk.mu_be @ Ye
+    Mη = Ye + disk.mu_be.reshape(N * n_i, n_k).T @ (Gx @ Yg).reshape(N * n_i, -1)
+    for k, sl in enumerate(slots):
+        Yl = Y[off[1 + k] : off[2 + k]]
+        KX += sl.CL @ Yl
+        MX += sl.DL @ Yl
+        Mη += disk.mu_be[k].T @ (sl.L[:n_i] @ Yl)
+    Kη = disk.Lambda[:, None] * Ye
+    R = [Kη - Mη * lam]
+    kn2 = np.sum(Kη**2, axis=0)
+    mn2 = np.sum(Mη**2, axis=0)
+    for k, sl in enumerate(slots):
+        Yl = Y[off[1 + k] : off[2 + k]]
+        v = sl.L @ Yl + np.vstack([Gx[k], Gown[k]]) @ Yg  # local coordinates of the Ritz vectors
+        Kv = sl.Kb @ v
+        Mv = sl.Mb @ v
+        Kv[:n_i] += KX[k]
+        Mv[:n_i] += MX[k]
+        R.append(Kv - Mv * lam)
+        kn2 += np.sum(Kv**2, axis=0)
+        mn2 += np.sum(Mv**2, axis=0)
+    return R, np.sqrt(kn2), np.sqrt(mn2)
+
+
+def _outputs(disk, slots, parts, Y):
+    """Disk measurement DOFs (one per sector) then each blade's accessory DOFs, shape (n_meas, n_modes)."""
+    n_i, n_k = disk.n_i, disk.n_k
+    off, Gx, Gown = parts["off"], parts["Gx"], parts["Gown"]
+    Yg = Y[off[-2] : off[-1]]
+    meas_disk = disk.out_eta @ Y[:n_k]
+    rows = []
+    for k, sl in enumerate(slots):
+        v = sl.L @ Y[off[1 + k] : off[2 + k]] + np.vstack([Gx[k], Gown[k]]) @ Yg
+        meas_disk += np.roll(disk.out_b1, k, axis=0) @ v[:n_i]
+        rows.append(v[sl.acc])
+    return np.vstack([meas_disk] + rows)

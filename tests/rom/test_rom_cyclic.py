@@ -1,0 +1,124 @@
+"""Cyclic all-slot CB disk and the full-assembly solve on it (rom.cyclic, issue 12 item 4).
+
+References: the dense all-slot Craig–Bampton reduction (every block computed from its own constraint modes,
+no symmetry used), the FE full assembly, and the sparse hybrid (the reference implementation).
+"""
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from rom import cache
+from rom.contact import ContactPattern
+from rom.cyclic import reduce_disk_cyclic, solve_full_cyclic
+from rom.errors import ROMError
+from rom.fe_assembly import solve_fe
+from rom.rom_assembly import solve_full
+from rom.validation import compare, fe_assembly_mistuned, random_patterns
+
+from . import rom_models
+
+GRID = (3, 7)
+N_SMALL = 6
+
+
+@pytest.fixture(scope="module")
+def small_cyclic():
+    return reduce_disk_cyclic(rom_models.bladed_disk(N_SMALL), 60)
+
+
+def test_circulant_blocks_equal_the_dense_all_slot_reduction(small_cyclic):
+    """Slot 1's constraint modes give every block of the all-slot CB (rotated frames, block-circulant)."""
+    cd = small_cyclic
+    full = rom_models.disk_cb(N_SMALL, tuple(range(1, N_SMALL + 1)), 60)
+    n_i = cd.n_i
+    scale_k, scale_m = np.abs(full.kappa_bb).max(), np.abs(full.mu_bb).max()
+    for s in range(1, N_SMALL + 1):
+        rs = slice((s - 1) * n_i, s * n_i)
+        np.testing.assert_allclose(cd.mu_be[s - 1], full.mu_be[rs], atol=1e-8 * np.abs(full.mu_be).max())
+        for t in range(1, N_SMALL + 1):
+            ts = slice((t - 1) * n_i, t * n_i)
+            assert np.abs(cd.kappa(s, t) - full.kappa_bb[rs, ts]).max() <= 1e-9 * scale_k
+            assert np.abs(cd.mu(s, t) - full.mu_bb[rs, ts]).max() <= 1e-9 * scale_m
+    np.testing.assert_allclose(cd.Lambda, full.Lambda, rtol=1e-9)
+    # Outputs: slot 1's constraint-mode rows, the modal rows up to each mode's sign.
+    np.testing.assert_allclose(cd.out_b1, full.output_basis[:, full.n_k : full.n_k + n_i], atol=1e-10)
+    sign = np.sign(np.sum(cd.out_eta * full.output_basis[:, : full.n_k], axis=0))
+    np.testing.assert_allclose(cd.out_eta * sign, full.output_basis[:, : full.n_k], atol=1e-8)
+
+
+@pytest.mark.parametrize("n_blades", [N_SMALL, 18])
+def test_full_solve_matches_the_fe_reference_like_the_hybrid(n_blades, small_cyclic):
+    bd, b = rom_models.bladed_disk(n_blades), rom_models.blade(n_blades)
+    cd = small_cyclic if n_blades == N_SMALL else reduce_disk_cyclic(bd, 60)
+    rng = np.random.default_rng(2026 + n_blades)
+    pats = random_patterns(GRID, range(1, n_blades + 1), rng)
+    delta = rng.uniform(-0.02, 0.02, n_blades)
+    deltas = np.repeat(delta[:, None], b.m, axis=1)
+    n = 3 * n_blades
+    fe = solve_fe(fe_assembly_mistuned(bd, pats, delta), n)
+    hybrid = solve_full(bd, b, pats, deltas, n_modes=n)
+    sol = solve_full_cyclic(cd, b, pats, deltas, n_modes=n)
+    c = compare("cyclic", fe, sol.modes, n)
+    ch = compare("hybrid", fe, hybrid, n)
+    assert c.f_fe.size == n
+    assert c.max_rel_err <= max(2 * ch.max_rel_err, 2e-4)
+    assert c.min_mac >= ch.min_mac - 5e-3
+    # The same model error as the hybrid: frequencies agree far below it, and labels line up.
+    np.testing.assert_allclose(sol.modes.frequencies_hz, hybrid.frequencies_hz, rtol=1e-4)
+    assert sol.modes.meas_labels == hybrid.meas_labels
+    assert sol.residuals.shape == (n,) and np.all(np.isfinite(sol.residuals))
+
+
+def test_more_rounds_converge_to_the_cb_model(small_cyclic):
+    """Each enrichment round lowers the residual; the frequencies then match the dense all-slot CB assembly."""
+    b = rom_models.blade(N_SMALL)
+    rng = np.random.default_rng(5)
+    pats = random_patterns(GRID, range(1, N_SMALL + 1), rng)
+    deltas = rng.uniform(-0.02, 0.02, (N_SMALL, b.m))
+    full_cb = rom_models.disk_cb(N_SMALL, tuple(range(1, N_SMALL + 1)), 60)
+    ref = solve_full(full_cb, b, pats, deltas, n_modes=3 * N_SMALL)
+    res = []
+    for rounds in (0, 1, 2):
+        sol = solve_full_cyclic(small_cyclic, b, pats, deltas, n_modes=3 * N_SMALL, rounds=rounds)
+        res.append(sol.residuals.max())
+    assert res[0] > res[1] > res[2]
+    np.testing.assert_allclose(sol.modes.frequencies_hz, ref.frequencies_hz, rtol=2e-7)
+
+
+def test_a_disk_that_is_not_cyclic_is_refused():
+    bd = rom_models.bladed_disk(N_SMALL)
+    K = bd.disk.K.tolil(copy=True)
+    # Stiffen one DOF next to slot 2's grid: sector 2 no longer equals sector 1.
+    node = int(bd.disk.node_set("slot2_L").ravel()[0])
+    nbr = K.rows[3 * node]
+    dof = next(j for j in nbr if j // 3 != node)
+    K[dof, dof] = K[dof, dof] * 1.5
+    bad = replace(bd, disk=replace(bd.disk, K=K.tocsr()))
+    with pytest.raises(ROMError, match="not cyclic"):
+        reduce_disk_cyclic(bad, 10)
+
+
+def test_bad_input_is_refused_with_a_message(small_cyclic):
+    b = rom_models.blade(N_SMALL)
+    pat = ContactPattern.full(GRID)
+    with pytest.raises(ROMError, match=r"missing \[6\]"):
+        solve_full_cyclic(small_cyclic, b, {s: pat for s in range(1, N_SMALL)})
+    with pytest.raises(ROMError, match="grid"):
+        solve_full_cyclic(replace(small_cyclic, meta={**small_cyclic.meta, "grid": [7, 31]}), b, pat)
+    with pytest.raises(ROMError, match="n_cc"):
+        reduce_disk_cyclic(rom_models.bladed_disk(N_SMALL), 10, n_cc=0)
+
+
+def test_cache_round_trip_keeps_every_array(tmp_path, small_cyclic):
+    bd = rom_models.bladed_disk(N_SMALL)
+    key = cache.cyclic_disk_key(bd, 60)
+    path = cache.cache_file("disk-cyclic", key, tmp_path)
+    cache.save_model(path, small_cyclic, key)
+    back = cache.cached_reduce_disk_cyclic(bd, 60, cache_dir=tmp_path)  # a hit: no build
+    for name in ("Lambda", "kappa_col", "mu_col", "mu_be", "out_eta", "out_b1", "cc_modes", "cc_mass", "cc_omega2"):
+        a, c = getattr(small_cyclic, name), getattr(back, name)
+        assert a.dtype == c.dtype and np.array_equal(a, c), name
+    assert back.meta == small_cyclic.meta
+    assert cache.cyclic_disk_key(bd, 61) != key
