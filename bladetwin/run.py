@@ -423,7 +423,7 @@ def _full_job(job: tuple) -> str:
             try:
                 sol = solve_full_cyclic(disk, blade, patterns, deltas, n_modes=n_modes)
                 modes, residual = sol.modes, float(sol.residuals.max())
-            except ROMError:  # a pattern that leaves a blade a mechanism: the hybrid copes
+            except ROMError:  # a slot's local stiffness not numerically positive definite: the hybrid copes
                 method = "hybrid"
         if modes is None:
             modes = solve_full(_MODELS["bd"], blade, patterns, deltas, n_modes=n_modes)

@@ -186,8 +186,9 @@ def reduce_disk_cyclic(
     Mee, Meb = Me[:, e].tocsr(), Me[:, dofs].tocsc()
     Kbe, Mbe = Keb.T.tocsr(), Meb.T.tocsr()
     b1 = dofs[:n_i]
-    Kbb1 = K[dofs][:, b1].toarray()
-    Mbb1 = M[dofs][:, b1].toarray()
+    # Sparse: only slot 1's own rows are non-zero (densified a block at a time below, not 2 × 244 MB whole).
+    Kbb1 = K[dofs][:, b1].tocsc()
+    Mbb1 = M[dofs][:, b1].tocsc()
     meas = 3 * bd.disk.node_set("meas").ravel() + int(bd.disk.meta["meas_direction"]) - 1
     pos_e = np.full(n, -1)
     pos_e[e] = np.arange(e.size)
@@ -211,13 +212,15 @@ def reduce_disk_cyclic(
             Psi_j = -np.asarray(fac.solve(Keb[:, j0:j1].toarray())).reshape(e.size, j1 - j0)
             W = Mee @ Psi_j + Meb[:, j0:j1].toarray()
             Y = np.asarray(fac.solve(W)).reshape(e.size, j1 - j0)
-            kap[:, j0:j1] = Kbb1[:, j0:j1] + Kbe @ Psi_j
-            mu[:, j0:j1] = -(Kbe @ Y) + Mbe @ Psi_j + Mbb1[:, j0:j1]
+            kap[:, j0:j1] = Kbb1[:, j0:j1].toarray() + Kbe @ Psi_j
+            mu[:, j0:j1] = -(Kbe @ Y) + Mbe @ Psi_j + Mbb1[:, j0:j1].toarray()
             out_b1[:, j0:j1] = Psi_j[pos_e[meas]]
         log.info("cyclic CB: slot 1's %d constraint modes in %.1f s", n_i, time.perf_counter() - t0)
     finally:
         fac.free()
     mu_be = -(Kbe @ Phi) / Lam + Mbe @ Phi  # (n_b, n_k)
+    # The partitioned FE matrices are done with: free them before the frame rotations' temporaries (the peak).
+    del Ke, Me, Kee, Keb, Mee, Meb, Kbe, Mbe, Kbb1, Mbb1
     # Slot frames: rows of every slot with their own rotation, columns of slot 1 with slot 1's.
     kap = _rotate(rots[: n_i // 3], _rotate(rots, kap, True).T, True).T
     mu = _rotate(rots[: n_i // 3], _rotate(rots, mu, True).T, True).T
@@ -301,13 +304,14 @@ class _Slot:
         self.M = self.Mb.copy()
         self.M[:n_i, :n_i] += disk.mu_col[0]
         # The slot held by the others is positive definite: one Cholesky factor serves the local modes and
-        # every block-Jacobi correction. It is not when the pattern leaves the blade a mechanism.
+        # every block-Jacobi correction. ContactPattern already refuses patterns that leave the blade a
+        # mechanism; a nearly collinear one can still fail numerically.
         try:
             self.K_chol = sla.cho_factor(K, check_finite=False)
             self.own_chol = sla.cho_factor(self.Kb[n_i:, n_i:], check_finite=False)
         except np.linalg.LinAlgError:
             raise ROMError(f"slot {slot}: its contact pattern ({int(contact.sum()) // 3} contacting nodes) does not "
-                           "hold the blade (a mechanism); solve this assembly with the sparse hybrid "
+                           "hold the blade firmly enough; solve this assembly with the sparse hybrid "
                            "(rom.rom_assembly.solve_full)") from None
         self.L = np.zeros((self.n, 0))  # orthonormal local basis
         self.CL = np.zeros((disk.n_slots, n_i, 0))  # κ_bb[t, s] X_s for every slot t

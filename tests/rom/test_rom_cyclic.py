@@ -10,11 +10,13 @@ import numpy as np
 import pytest
 
 from rom import cache
+from rom.academic import build_bladed_disk
 from rom.contact import ContactPattern
 from rom.cyclic import reduce_disk_cyclic, solve_full_cyclic
 from rom.errors import ROMError
 from rom.fe_assembly import solve_fe
 from rom.rom_assembly import solve_full
+from rom.rubin import reduce_blade
 from rom.validation import compare, fe_assembly_mistuned, random_patterns
 
 from . import rom_models
@@ -48,12 +50,17 @@ def test_circulant_blocks_equal_the_dense_all_slot_reduction(small_cyclic):
     np.testing.assert_allclose(cd.out_eta * sign, full.output_basis[:, : full.n_k], atol=1e-8)
 
 
-@pytest.mark.parametrize("n_blades", [N_SMALL, 18])
-def test_full_solve_matches_the_fe_reference_like_the_hybrid(n_blades, small_cyclic):
-    bd, b = rom_models.bladed_disk(n_blades), rom_models.blade(n_blades)
-    cd = small_cyclic if n_blades == N_SMALL else reduce_disk_cyclic(bd, 60)
+@pytest.mark.parametrize(("n_blades", "grid"), [(N_SMALL, GRID), (18, GRID), (5, (2, 5))])
+def test_full_solve_matches_the_fe_reference_like_the_hybrid(n_blades, grid, small_cyclic):
+    """Even and odd blade counts (a harmonic N/2 or not) and another contact grid."""
+    if grid == GRID:
+        bd, b = rom_models.bladed_disk(n_blades), rom_models.blade(n_blades)
+    else:
+        bd = build_bladed_disk(rom_models.COARSE.with_(n_blades=n_blades, grid=grid))
+        b = reduce_blade(bd)
+    cd = small_cyclic if (n_blades, grid) == (N_SMALL, GRID) else reduce_disk_cyclic(bd, 60)
     rng = np.random.default_rng(2026 + n_blades)
-    pats = random_patterns(GRID, range(1, n_blades + 1), rng)
+    pats = random_patterns(grid, range(1, n_blades + 1), rng)
     delta = rng.uniform(-0.02, 0.02, n_blades)
     deltas = np.repeat(delta[:, None], b.m, axis=1)
     n = 3 * n_blades
