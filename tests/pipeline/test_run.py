@@ -140,9 +140,32 @@ def test_warm_rerun_recomputes_nothing_and_gives_the_same_answer(campaign, cold,
     capsys.readouterr()
     assert main(["run", str(camp), *KNN_ONLY, "--out", str(root / "warm"), "--cache-dir", str(root / "cache")]) == 0
     err = capsys.readouterr().err
-    assert "EMA of" not in err and "dataset:" not in err and "full-assembly ROM:" not in err, err
+    assert "EMA of" not in err and "dataset:" not in err and "full-assembly ROM (" not in err, err
+    assert "disk built" not in err, err
     w = json.loads((root / "warm" / "summary.json").read_text())
     assert w["joints"] == s["joints"] and w["cases"] == s["cases"]
+
+
+def test_a_disk_the_cyclic_reduction_refused_falls_back_on_the_sparse_hybrid(campaign, cold, tmp_path, capsys):
+    """The full solves then run on the hybrid (FE disk + Rubin blades), the reference implementation: the same
+    Table 8 to the two ROMs' difference, and a note that says why."""
+    root, camp = campaign
+    out, s = cold
+    cache = tmp_path / "cache"
+    shutil.copytree(root / "cache", cache, ignore=shutil.ignore_patterns("full"))
+    (cyclic,) = cache.glob("disk-cyclic-*.npz")  # the cold run built it
+    cyclic.with_suffix(".refused").write_text("the disk is not cyclic (marked by the test)\n")
+    cyclic.unlink()
+    capsys.readouterr()
+    assert main(["run", str(camp), *KNN_ONLY, "--out", str(tmp_path / "out"), "--cache-dir", str(cache)]) == 0
+    err = capsys.readouterr().err
+    assert "full-assembly ROM (hybrid): solving 'baseline'" in err and "disk built" not in err, err
+    h = json.loads((tmp_path / "out" / "summary.json").read_text())
+    assert any("sparse hybrid" in n and "marked by the test" in n for n in h["notes"]), h["notes"]
+    assert any("cyclic all-slot" in n for n in s["notes"])
+    for case in ("A", "B", "C"):
+        assert h["cases"][case]["mean_abs_df_pct"] == pytest.approx(s["cases"][case]["mean_abs_df_pct"], abs=2e-3)
+        assert h["cases"][case]["mean_mac"] == pytest.approx(s["cases"][case]["mean_mac"], abs=5e-3)
 
 
 def test_refinement_improves_the_feature_match_and_is_cached(campaign, cold, capsys):
