@@ -228,10 +228,12 @@ def reduce_disk_cyclic(
     out_b1 = _rotate(rots[: n_i // 3], out_b1.T, True).T
     kappa_col = _sym_circulant(kap.reshape(N, n_i, n_i))
     mu_col = _sym_circulant(mu.reshape(N, n_i, n_i))
-    # C_d and C_(−d)ᵀ come from different constraint modes: their difference measures how cyclic the disk is.
-    asym = float(np.max(np.abs(kap.reshape(N, n_i, n_i) - kappa_col)) / np.max(np.abs(kappa_col[0])))
+    # C_d and C_(−d)ᵀ come from different constraint modes: their difference measures how cyclic the disk is
+    # (in stiffness and in mass: a disk with one heavier sector has circulant κ_bb blocks).
+    asym = max(float(np.max(np.abs(kap.reshape(N, n_i, n_i) - kappa_col)) / np.max(np.abs(kappa_col[0]))),
+               float(np.max(np.abs(mu.reshape(N, n_i, n_i) - mu_col)) / np.max(np.abs(mu_col[0]))))
     if asym > 1e-6:
-        raise ROMError(f"the disk is not cyclic to 1e-6 (its κ_bb blocks differ by {asym:.1e} relative); "
+        raise ROMError(f"the disk is not cyclic to 1e-6 (its boundary blocks differ by {asym:.1e} relative); "
                        "use the sparse hybrid (rom.rom_assembly.assemble_full)")
     cc, cc_mass, cc_w2 = _cc_modes(kappa_col, mu_col, int(n_cc))
     log.info("cyclic CB: n_e=%d, N=%d slots × n_i=%d, n_k=%d; built in %.1f s", e.size, N, n_i, n_modes,
@@ -245,8 +247,8 @@ def reduce_disk_cyclic(
 
 def _cc_modes(kappa_col: np.ndarray, mu_col: np.ndarray, n_cc: int):
     """The lowest ``n_cc`` CC modes of each harmonic 0..N//2 (eigenvectors of the slot-DFT blocks)."""
-    C_hat = np.fft.fft(kappa_col, axis=0)[: kappa_col.shape[0] // 2 + 1]
-    D_hat = np.fft.fft(mu_col, axis=0)[: kappa_col.shape[0] // 2 + 1]
+    C_hat = np.fft.rfft(kappa_col, axis=0)  # harmonics 0..N//2: Ĉ_h = Σ_d C_d e^(−2πi h d / N)
+    D_hat = np.fft.rfft(mu_col, axis=0)
     H, n_i = C_hat.shape[:2]
     psi = np.empty((H, n_i, n_cc), complex)
     dpsi = np.empty_like(psi)

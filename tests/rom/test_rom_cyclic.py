@@ -94,15 +94,15 @@ def test_more_rounds_converge_to_the_cb_model(small_cyclic):
     np.testing.assert_allclose(sol.modes.frequencies_hz, ref.frequencies_hz, rtol=2e-7)
 
 
-def test_a_disk_that_is_not_cyclic_is_refused():
+@pytest.mark.parametrize("matrix", ["K", "M"])
+def test_a_disk_that_is_not_cyclic_is_refused(matrix):
+    """One DOF next to slot 2's grid stiffer (or heavier): sector 2 no longer equals sector 1."""
     bd = rom_models.bladed_disk(N_SMALL)
-    K = bd.disk.K.tolil(copy=True)
-    # Stiffen one DOF next to slot 2's grid: sector 2 no longer equals sector 1.
+    A = getattr(bd.disk, matrix).tolil(copy=True)
     node = int(bd.disk.node_set("slot2_L").ravel()[0])
-    nbr = K.rows[3 * node]
-    dof = next(j for j in nbr if j // 3 != node)
-    K[dof, dof] = K[dof, dof] * 1.5
-    bad = replace(bd, disk=replace(bd.disk, K=K.tocsr()))
+    dof = next(j for j in A.rows[3 * node] if j // 3 != node)
+    A[dof, dof] = A[dof, dof] * 1.5
+    bad = replace(bd, disk=replace(bd.disk, **{matrix: A.tocsr()}))
     with pytest.raises(ROMError, match="not cyclic"):
         reduce_disk_cyclic(bad, 10)
 
