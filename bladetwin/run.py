@@ -414,7 +414,7 @@ def _full_job(job: tuple) -> str:
     from rom.rom_assembly import solve_full
 
     L, R, deltas, n_modes, path, single = job
-    method, disk, blade = _MODELS["full"]
+    method, disk, blade, bd = _MODELS["full"]
     patterns = {s + 1: ContactPattern(L[s], R[s]) for s in range(len(L))}
     residual = np.nan
     with threadpool_limits(1 if single else None):
@@ -426,7 +426,7 @@ def _full_job(job: tuple) -> str:
             except ROMError:  # a slot's local stiffness not numerically positive definite: the hybrid copes
                 method = "hybrid"
         if modes is None:
-            modes = solve_full(_MODELS["bd"], blade, patterns, deltas, n_modes=n_modes)
+            modes = solve_full(bd, blade, patterns, deltas, n_modes=n_modes)
     _save_npz(path, frequencies_hz=modes.frequencies_hz, meas_shapes=modes.meas_shapes,
               meas_labels=np.array(json.dumps([list(lab) for lab in modes.meas_labels])),
               method=np.array(method), max_residual=np.array(residual))
@@ -606,8 +606,8 @@ class _FullSolves:
                 disk = cache.load_model(cache.cache_file("disk-cyclic", self.cyclic_key, self.cache_dir))
             else:
                 disk = self.bd
-            _MODELS["full"] = (self.method, disk, self.blade)  # the workers fork now and keep these
-            _MODELS["bd"] = self.bd  # the hybrid, for a pattern the cyclic solve refuses
+            # The workers fork now and keep these (the bladed disk: the hybrid, for a solve the cyclic one refuses).
+            _MODELS["full"] = (self.method, disk, self.blade, self.bd)
             self.bg = _Background(self.workers, self.say)
         where = " in the background" if self.bg.pool is not None else ""
         self.say(f"full-assembly ROM ({self.method}): solving '{name}' ({self.n_modes} modes){where}")
