@@ -69,7 +69,7 @@ log = logging.getLogger(__name__)
 DEFAULT_N_CYCLIC_MODES = 40
 #: CC modes kept per harmonic (stored with the disk; a solve may use fewer).
 DEFAULT_N_CC = 6
-#: Local modes per slot in the starting Ritz space.
+#: Local modes per slot sought for the starting Ritz space (its subspace iteration keeps twice as many vectors).
 DEFAULT_N_LOCAL_MODES = 6
 #: Enrichment rounds.
 DEFAULT_ROUNDS = 1
