@@ -53,6 +53,8 @@ log = logging.getLogger(__name__)
 FORMAT_VERSION = 1
 
 _MODEL_TYPES = {"CraigBamptonModel": CraigBamptonModel, "RubinModel": RubinModel, "CyclicDiskModel": CyclicDiskModel}
+#: The reduced models the cache holds.
+_Model = CraigBamptonModel | RubinModel | CyclicDiskModel
 
 
 def default_cache_dir() -> Path:
@@ -99,7 +101,7 @@ def hash_inputs(*inputs) -> str:
     return h.hexdigest()
 
 
-def save_model(path: str | os.PathLike, model: CraigBamptonModel | RubinModel, key: str = "") -> Path:
+def save_model(path: str | os.PathLike, model: _Model, key: str = "") -> Path:
     """Write a reduced model to ``path`` (.npz, atomic)."""
     kind = type(model).__name__
     if kind not in _MODEL_TYPES:
@@ -121,7 +123,7 @@ def save_model(path: str | os.PathLike, model: CraigBamptonModel | RubinModel, k
     return path
 
 
-def load_model(path: str | os.PathLike, key: str | None = None) -> CraigBamptonModel | RubinModel:
+def load_model(path: str | os.PathLike, key: str | None = None) -> _Model:
     """Read a model written by :func:`save_model` (``allow_pickle=False``); check ``key`` when given."""
     with np.load(path, allow_pickle=False) as z:
         kind = str(z["__kind__"])
@@ -145,9 +147,9 @@ def load_model(path: str | os.PathLike, key: str | None = None) -> CraigBamptonM
 def cached(
     kind: str,
     key: str,
-    build: Callable[[], CraigBamptonModel | RubinModel],
+    build: Callable[[], _Model],
     cache_dir: str | os.PathLike | None = None,
-) -> CraigBamptonModel | RubinModel:
+) -> _Model:
     """Load ``<cache_dir>/<kind>-<key>.npz`` if present, otherwise ``build()`` and store it."""
     path = cache_file(kind, key, cache_dir)
     if path.exists():
