@@ -46,7 +46,6 @@ from identify.validation import GridError, ModeComparison, compare_modes, grid_e
 from lab.rig import rom_modal_model
 from rom import cache
 from rom.contact import ContactPattern
-from rom.craig_bampton import reduce_disk
 from rom.fileio import atomic_path
 from rom.mistuning import rom_deltas
 from rom.rubin import RubinModel
@@ -416,20 +415,18 @@ def _full_job(job: tuple) -> str:
     L, R, deltas, n_modes, path, single = job
     method, disk, blade, bd = _MODELS["full"]
     patterns = {s + 1: ContactPattern(L[s], R[s]) for s in range(len(L))}
-    residual = np.nan
     with threadpool_limits(1 if single else None):
         modes = None
         if method == "cyclic":
             try:
-                sol = solve_full_cyclic(disk, blade, patterns, deltas, n_modes=n_modes)
-                modes, residual = sol.modes, float(sol.residuals.max())
+                modes = solve_full_cyclic(disk, blade, patterns, deltas, n_modes=n_modes).modes
             except ROMError:  # a slot's local stiffness not numerically positive definite: the hybrid copes
                 method = "hybrid"
         if modes is None:
             modes = solve_full(bd, blade, patterns, deltas, n_modes=n_modes)
     _save_npz(path, frequencies_hz=modes.frequencies_hz, meas_shapes=modes.meas_shapes,
               meas_labels=np.array(json.dumps([list(lab) for lab in modes.meas_labels])),
-              method=np.array(method), max_residual=np.array(residual))
+              method=np.array(method))
     return path.name
 
 
@@ -460,7 +457,7 @@ def _disk_job(job: tuple[str, Path, bool, str]) -> float:
     t = time.perf_counter()
     with threadpool_limits(1 if forked else None):
         if kind == "cb":
-            cache.cached("disk-cb", key, lambda: reduce_disk(_MODELS["bd"], (1,)), cache_dir)
+            cache.cached_reduce_disk(_MODELS["bd"], (1,), cache_dir=cache_dir, key=key)
         else:
             try:
                 cache.cached_reduce_disk_cyclic(_MODELS["bd"], cache_dir=cache_dir, key=key)
@@ -552,14 +549,16 @@ class _FullSolves:
     They run on the cyclic all-slot CB (:mod:`rom.cyclic`) once it is built (``cyclic_job``, in the
     background), or on the sparse hybrid (FE disk + Rubin blades) for a disk that is not cyclic. Until the
     cyclic build ends, solves are queued: :meth:`submit` and :meth:`poll` start them as soon as it has.
-    ``hybrid_key`` and ``cyclic_key`` identify the two models.
+    ``keys`` = {"hybrid": …, "cyclic": …}: the full solves' model keys; ``cyclic_key`` is the cyclic disk's
+    cache key.
     """
 
-    def __init__(self, bd, blade: RubinModel, hybrid_key: str, cyclic_key: str, cyclic_job, deltas: np.ndarray,
-                 n_modes: int, cache_dir: Path, workers: int, say: Callable[[str], None]) -> None:
+    def __init__(self, bd, blade: RubinModel, keys: dict[str, str], cyclic_key: str, cyclic_job,
+                 deltas: np.ndarray, n_modes: int, cache_dir: Path, workers: int,
+                 say: Callable[[str], None]) -> None:
         (cache_dir / "full").mkdir(parents=True, exist_ok=True)
         self.bd, self.blade = bd, blade
-        self.hybrid_key, self.cyclic_key, self.cyclic_job = hybrid_key, cyclic_key, cyclic_job
+        self.keys, self.cyclic_key, self.cyclic_job = keys, cyclic_key, cyclic_job
         self.deltas, self.n_modes, self.cache_dir = deltas, n_modes, cache_dir
         self.say, self.workers = say, workers
         self.paths: dict[str, Path] = {}
@@ -590,13 +589,8 @@ class _FullSolves:
         for name, patterns in queue:
             self._start(name, patterns)
 
-    def _model_key(self) -> str:
-        if self.method == "cyclic":
-            return cache.hash_inputs("full-cyclic", self.cyclic_key, cache.blade_key(self.bd), CYCLIC_SOLVE_VERSION)
-        return self.hybrid_key
-
     def _start(self, name: str, patterns: list[ContactPattern]) -> None:
-        path = _full_path(self._model_key(), patterns, self.deltas, self.n_modes, self.cache_dir)
+        path = _full_path(self.keys[self.method], patterns, self.deltas, self.n_modes, self.cache_dir)
         new = not path.is_file() and path not in self.paths.values()  # identical inputs are solved once
         self.paths[name] = path
         if not new:
@@ -630,13 +624,20 @@ class _FullSolves:
         return out
 
     def note(self) -> str:
-        """How the full-assembly modes were computed, for the report."""
-        if self.method == "cyclic":
-            return ("Full-assembly ROM: the cyclic all-slot Craig–Bampton disk (built once per disk) with the Rubin "
-                    "blades, solved by Rayleigh–Ritz refined on its residuals (beyond the paper; against the FE "
-                    "reference on the default disk as close as the sparse hybrid: 0.012 %, MAC ≥ 0.9997, "
-                    "docs/rom.md §4.2).")
-        return f"Full-assembly ROM: the sparse hybrid (FE disk + Rubin blades): {self.refused}."
+        """How the full-assembly modes were computed, for the report (after :meth:`results`)."""
+        if self.method != "cyclic":
+            return f"Full-assembly ROM: the sparse hybrid (FE disk + Rubin blades): {self.refused}."
+        fell_back = []
+        for name, path in self.paths.items():
+            with np.load(path, allow_pickle=False) as z:
+                if "method" in z.files and str(z["method"]) == "hybrid":
+                    fell_back.append(name)
+        tail = (f" The cyclic solve refused the patterns of {', '.join(fell_back)} (a slot's stiffness not positive "
+                "definite); those ran on the sparse hybrid." if fell_back else "")
+        return ("Full-assembly ROM: the cyclic all-slot Craig–Bampton disk (built once per disk) with the Rubin "
+                "blades, solved by Rayleigh–Ritz refined on its residuals (beyond the paper; against the FE "
+                "reference on the default disk as close as the sparse hybrid: 0.012 %, MAC ≥ 0.9997, "
+                "docs/rom.md §4.2)." + tail)
 
 
 def _case(c: ModeComparison | None) -> dict | None:
@@ -746,9 +747,11 @@ def run_campaign(campaign: Campaign, opts: RunOptions = RunOptions(),
     # The solves that need no identification are asked for now; they start when the cyclic disk is built.
     solves = None
     try:
-        hybrid_key = cache.hash_inputs("full-hybrid", disk_key, cache.blade_key(bd))
-        solves = _FullSolves(bd, blade, hybrid_key, cyclic_key, cyclic_job, delta_all, n_modes, cache_dir,
-                             opts.workers, say)
+        blade_key = cache.blade_key(bd)
+        keys = {"hybrid": cache.hash_inputs("full-hybrid", disk_key, blade_key),
+                "cyclic": cache.hash_inputs("full-cyclic", cyclic_key, blade_key, CYCLIC_SOLVE_VERSION)}
+        solves = _FullSolves(bd, blade, keys, cyclic_key, cyclic_job, delta_all, n_modes, cache_dir, opts.workers,
+                             say)
         solves.submit("baseline", [known.get(j, base) for j in range(1, n + 1)])
         if reference is not None:
             solves.submit("reference", list(reference))
@@ -760,8 +763,7 @@ def run_campaign(campaign: Campaign, opts: RunOptions = RunOptions(),
                 disk_job.wait(1.0)
             _Background.wait_for([disk_job])
         _MODELS.pop("bd", None)
-        # cached_reduce_disk(bd, (1,)), under the key computed above
-        models = Models(bd, cache.cached("disk-cb", disk_key, lambda: reduce_disk(bd, (1,)), cache_dir), blade)
+        models = Models(bd, cache.cached_reduce_disk(bd, (1,), cache_dir=cache_dir, key=disk_key), blade)
         timings["rom"] = rom_s + (disk_job.get() if disk_job is not None else time.perf_counter() - t1)
         t0 = time.perf_counter()
         say(f"PCA sampler: {opts.n_patterns} synthetic patterns per flank from {len(films)} filmed joints")

@@ -186,10 +186,14 @@ def cached_reduce_disk(
     *,
     cache_dir: str | os.PathLike | None = None,
     backend: str = "auto",
+    key: str | None = None,
 ) -> CraigBamptonModel:
-    """:func:`rom.craig_bampton.reduce_disk` through the cache (no full basis is cached)."""
-    return cached("disk-cb", disk_key(bd, slots, n_modes), lambda: reduce_disk(bd, slots, n_modes, backend=backend),
-                  cache_dir)
+    """:func:`rom.craig_bampton.reduce_disk` through the cache (no full basis is cached).
+
+    ``key``: a precomputed :func:`disk_key` for these arguments (it hashes K and M, about 2 s by default).
+    """
+    key = disk_key(bd, slots, n_modes) if key is None else key
+    return cached("disk-cb", key, lambda: reduce_disk(bd, slots, n_modes, backend=backend), cache_dir)
 
 
 def cached_reduce_blade(

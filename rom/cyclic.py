@@ -46,7 +46,7 @@ from .craig_bampton import _rotate, disk_boundary_dofs
 from .errors import ROMError
 from .fe_assembly import AssemblyModes
 from .modal import dense_modes
-from .rom_assembly import _blade_part, _check_pattern, _deltas, _grid_shape, _meas_labels
+from .rom_assembly import _blade_part, _check_pattern, _deltas, _every_slot, _grid_shape, _meas_labels
 from .rubin import RubinModel
 from .solver import available_backends, factorize, solve_modes_factored
 
@@ -427,11 +427,7 @@ def solve_full_cyclic(
     grid = _grid_shape(blade)
     if tuple(disk.meta.get("grid", grid)) != grid:
         raise ROMError(f"blade model grid {grid} differs from the cyclic disk's {tuple(disk.meta['grid'])}")
-    if isinstance(patterns, ContactPattern):
-        patterns = {s: patterns for s in range(1, N + 1)}
-    missing = sorted(set(range(1, N + 1)) - set(patterns))
-    if missing:
-        raise ROMError(f"patterns must give every slot 1..{N}; missing {missing}")
+    patterns = _every_slot(patterns, N)
     dl = _deltas(deltas, N, blade.m)
     n_modes = 3 * N if n_modes is None else int(n_modes)
     n_cc = disk.cc_modes.shape[2] if n_cc is None else int(n_cc)

@@ -37,6 +37,7 @@ import scipy.sparse as sp
 from .academic import BladedDisk, check_slot
 from .contact import ContactPattern
 from .craig_bampton import CraigBamptonModel
+from .errors import ROMError
 from .fe_assembly import AssemblyModes
 from .mistuning import as_delta
 from .modal import dense_modes, single_thread_blas
@@ -282,14 +283,7 @@ def assemble_full(
         n_slots = int(disk.meta.get("n_sectors", 0))
     else:
         raise ValueError(f"disk must be a BladedDisk or a CraigBamptonModel, got {type(disk).__name__}")
-    if isinstance(patterns, ContactPattern):
-        patterns = {s: patterns for s in range(1, n_slots + 1)}
-    pats = dict(patterns)
-    for s in pats:
-        check_slot(s, n_slots)
-    missing = sorted(set(range(1, n_slots + 1)) - set(pats))
-    if missing:
-        raise ValueError(f"patterns must give every slot 1..{n_slots}; missing {missing}")
+    pats = _every_slot(patterns, n_slots)
     dl = _deltas(deltas, n_slots, blade.m)
     if isinstance(disk, CraigBamptonModel):
         slots = [int(s) for s in disk.meta.get("slots", [])]
@@ -299,6 +293,19 @@ def assemble_full(
         asm = _cb_assembly(disk, blade, pats, dl, formulation, block, 0)
         return ReducedAssembly(asm.K, asm.M, asm.out, asm.meas_labels, {**asm.meta, "assembly": "full", "method": "cb"})
     return _hybrid_assembly(disk, blade, pats, dl, formulation)
+
+
+def _every_slot(patterns: Mapping[int, ContactPattern] | ContactPattern, n_slots: int) -> dict[int, ContactPattern]:
+    """Slot → pattern for every slot 1..N (one pattern given: the same in every slot); other slots refused."""
+    if isinstance(patterns, ContactPattern):
+        return {s: patterns for s in range(1, n_slots + 1)}
+    pats = dict(patterns)
+    for s in pats:
+        check_slot(s, n_slots)
+    missing = sorted(set(range(1, n_slots + 1)) - set(pats))
+    if missing:
+        raise ROMError(f"patterns must give every slot 1..{n_slots}; missing {missing}")
+    return pats
 
 
 def _deltas(deltas, n_slots: int, m: int) -> dict:
