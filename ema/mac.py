@@ -16,7 +16,8 @@ from .frf import DOF
 from .modal import ModalModel
 
 __all__ = [
-    "mac", "mac_paired", "distinct_mac", "automac", "common_dofs", "ModePairing", "pair_by_frequency", "pair_modes",
+    "mac", "mac_paired", "ScaledRows", "distinct_mac", "automac", "common_dofs", "ModePairing", "pair_by_frequency",
+    "pair_modes",
 ]
 
 
@@ -94,6 +95,50 @@ def mac_paired(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     a, na = _unit_max(a, axis=1)
     b, nb = _unit_max(b, axis=1)
     return _ratio(np.sum(a.conj() * b, axis=1), na, nb)
+
+
+@dataclass(frozen=True, eq=False)
+class ScaledRows:
+    """Vectors (rows) scaled once as :func:`mac_paired` scales them, for MACs of many pairs among them.
+
+    The scaling of :func:`mac_paired` is row by row, so scaling every row once and then gathering pairs gives
+    its values bit for bit; a pole in many candidate pairs is then no longer scaled again for each (the
+    stabilization and the clustering of a large diagram spent most of their time there).
+
+    Attributes
+    ----------
+    unit : ndarray of complex, shape (n, n_vec)
+        Each row divided by its largest magnitude.
+    norm2 : ndarray, shape (n,)
+        Squared norms of the scaled rows.
+    """
+
+    unit: np.ndarray
+    norm2: np.ndarray
+
+    @classmethod
+    def of(cls, a: np.ndarray) -> ScaledRows:
+        a = np.asarray(a, dtype=np.complex128)
+        if a.ndim != 2:
+            raise EMAError(f"ScaledRows: vectors must be a 2-D (n, n_vec) array, got shape {a.shape}")
+        return cls(*_unit_max(a, axis=1))
+
+    def mac(self, i: np.ndarray, other: ScaledRows, j: np.ndarray, *, block_entries: int = 10_000_000) -> np.ndarray:
+        """MAC of row ``i[k]`` here with row ``j[k]`` of ``other``, shape (n_pairs,) (``mac_paired(a[i], b[j])``).
+
+        Pairs are gathered ``block_entries // n_vec`` at a time, which bounds the memory of the gathered rows.
+        """
+        i, j = np.asarray(i, dtype=np.intp).ravel(), np.asarray(j, dtype=np.intp).ravel()
+        if i.shape != j.shape or self.unit.shape[1] != other.unit.shape[1]:
+            raise EMAError(f"ScaledRows.mac: {i.size} and {j.size} row indices into vectors of "
+                           f"{self.unit.shape[1]} and {other.unit.shape[1]} entries; expected equal counts")
+        out = np.empty(i.size)
+        step = max(1, block_entries // max(1, self.unit.shape[1]))
+        for s in range(0, i.size, step):
+            ii, jj = i[s : s + step], j[s : s + step]
+            out[s : s + step] = _ratio(np.sum(self.unit[ii].conj() * other.unit[jj], axis=1), self.norm2[ii],
+                                       other.norm2[jj])
+        return out
 
 
 def distinct_mac(mac_min: float) -> float:

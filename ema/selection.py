@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .errors import EMAError
-from .mac import mac, mac_paired
+from .mac import ScaledRows, mac
 from .modal import pole_from_modal
 from .stabilization import STABLE_FD, STABLE_FDV, StabilizationDiagram
 
@@ -132,11 +132,9 @@ def cluster_poles(
     counts = hi - np.arange(f.size) - 1
     ii = np.repeat(np.arange(f.size), counts)
     jj = ii + 1 + np.arange(ii.size) - np.repeat(np.cumsum(counts) - counts, counts)
-    # Row-wise MACs, so blocks of pairs give exactly the values of one call (see _PAIR_BLOCK_ENTRIES).
-    mac = np.empty(ii.size)
-    step = max(1, _PAIR_BLOCK_ENTRIES // max(1, vec.shape[1]))
-    for s in range(0, ii.size, step):
-        mac[s : s + step] = mac_paired(vec[ii[s : s + step]], vec[jj[s : s + step]])
+    # Row-wise MACs, in blocks of pairs (see _PAIR_BLOCK_ENTRIES), each vector scaled once.
+    sv = ScaledRows.of(vec)
+    mac = sv.mac(ii, sv, jj, block_entries=_PAIR_BLOCK_ENTRIES)
     ok = (mac >= mac_min) & (orders[ii] != orders[jj])
     ii, jj, mac = ii[ok], jj[ok], mac[ok]
     dist = np.abs(lam[ii] - lam[jj]) / np.abs(lam[jj]) + (1.0 - mac)

@@ -7,7 +7,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .errors import EMAError
-from .mac import mac_paired
+from .mac import ScaledRows
 from .poles import DOF, PoleSet
 
 __all__ = [
@@ -112,7 +112,7 @@ class StabilizationDiagram:
 
 
 def _match_previous(
-    f: np.ndarray, lam: np.ndarray, vec: np.ndarray, sel: np.ndarray, prev: np.ndarray, freq_tol: float
+    f: np.ndarray, lam: np.ndarray, vec: ScaledRows, sel: np.ndarray, prev: np.ndarray, freq_tol: float
 ) -> tuple[np.ndarray, np.ndarray]:
     """The pole of the previous order that each pole of ``sel`` is compared with, and their MAC.
 
@@ -126,7 +126,8 @@ def _match_previous(
     f : ndarray, shape (n_poles,)
         Frequencies of all poles; ``f[prev]`` ascending.
     lam : ndarray of complex, shape (n_poles,)
-    vec : ndarray, shape (n_poles, n_vec)
+    vec : ScaledRows
+        Pole vectors of all poles, scaled once (n_poles rows).
     sel, prev : ndarray of int
         Poles of the current and of the previous order.
     freq_tol : float
@@ -149,13 +150,13 @@ def _match_previous(
     if counts.sum():
         ii = np.repeat(np.arange(sel.size), counts)
         jj = prev[np.repeat(lo, counts) + np.arange(counts.sum()) - np.repeat(np.cumsum(counts) - counts, counts)]
-        mac = mac_paired(vec[sel[ii]], vec[jj])
+        mac = vec.mac(sel[ii], vec, jj)
         dist = np.abs(lam[sel[ii]] - lam[jj]) / np.abs(lam[sel[ii]]) + (1.0 - mac)
         # the smallest distance per current pole: sort by (pole, distance), keep the first of each run
         first = np.lexsort((dist, ii))
         keep = first[np.r_[True, ii[first][1:] != ii[first][:-1]]]
         match[ii[keep]] = jj[keep]
-    return match, mac_paired(vec[sel], vec[match])
+    return match, vec.mac(sel, vec, match)
 
 
 def stabilize(poles: PoleSet, criteria: StabilityCriteria | None = None) -> StabilizationDiagram:
@@ -189,10 +190,11 @@ def stabilize(poles: PoleSet, criteria: StabilityCriteria | None = None) -> Stab
     stab = np.zeros(order.size, dtype=np.int64)
     mac_prev = np.full(order.size, np.nan)
     prev = None
+    scaled = ScaledRows.of(vec)
     for p in poles.orders:
         sel = np.flatnonzero(order == p)
         if prev is not None and prev.size and sel.size:
-            m, mac = _match_previous(f, pole, vec, sel, prev, crit.freq_tol)
+            m, mac = _match_previous(f, pole, scaled, sel, prev, crit.freq_tol)
             df = np.abs(f[sel] - f[m]) / f[sel]
             dz = np.abs(z[sel] - z[m]) / np.maximum(z[sel], 1e-12)
             mac_prev[sel] = mac

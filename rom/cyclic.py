@@ -39,10 +39,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import scipy.linalg as sla
+import scipy.sparse as sp
 
 from .academic import BladedDisk
 from .contact import ContactPattern
-from .craig_bampton import _rotate, disk_boundary_dofs
+from .craig_bampton import disk_boundary_dofs
 from .errors import ROMError
 from .fe_assembly import AssemblyModes
 from .modal import dense_modes
@@ -141,6 +142,13 @@ class CyclicDiskModel:
         return self.mu_col[(s - t) % self.n_slots]
 
 
+def _frames(rots: np.ndarray) -> sp.csr_matrix:
+    """T = blockdiag(R_j), shape (3 n, 3 n): x_global = T x_frame for node frames ``rots`` of shape (n, 3, 3)."""
+    n = rots.shape[0]
+    return sp.bsr_matrix((np.ascontiguousarray(rots, dtype=np.float64), np.arange(n), np.arange(n + 1)),
+                         shape=(3 * n, 3 * n)).tocsr()
+
+
 def _sym_circulant(col: np.ndarray) -> np.ndarray:
     """Average each block with the transpose of its mirror: C_d = C_(−d)ᵀ holds for a symmetric matrix."""
     N = col.shape[0]
@@ -182,13 +190,17 @@ def reduce_disk_cyclic(
     e = np.flatnonzero(~is_b)
     K, M = bd.disk.K.tocsr(), bd.disk.M.tocsr()
     Ke, Me = K[e], M[e]
-    Kee, Keb = Ke[:, e].tocsr(), Ke[:, dofs].tocsc()
-    Mee, Meb = Me[:, e].tocsr(), Me[:, dofs].tocsc()
-    Kbe, Mbe = Keb.T.tocsr(), Meb.T.tocsr()
+    # Every boundary block in the slots' frames from the start: the sparse couplings are rotated (3×3 blocks
+    # per node), so the dense blocks come out rotated and need no pass of their own.
+    T = _frames(rots)
+    T1 = T[:n_i, :n_i]
+    Kee, Mee = Ke[:, e].tocsr(), Me[:, e].tocsr()
+    Keb, Meb = (Ke[:, dofs[:n_i]] @ T1).tocsc(), (Me[:, dofs[:n_i]] @ T1).tocsc()  # slot 1's columns
+    Kbe, Mbe = (T.T @ Ke[:, dofs].T).tocsr(), (T.T @ Me[:, dofs].T).tocsr()
     b1 = dofs[:n_i]
     # Sparse: only slot 1's own rows are non-zero (densified a block at a time below, not 2 × 244 MB whole).
-    Kbb1 = K[dofs][:, b1].tocsc()
-    Mbb1 = M[dofs][:, b1].tocsc()
+    Kbb1 = (T.T @ K[dofs][:, b1] @ T1).tocsc()
+    Mbb1 = (T.T @ M[dofs][:, b1] @ T1).tocsc()
     meas = 3 * bd.disk.node_set("meas").ravel() + int(bd.disk.meta["meas_direction"]) - 1
     pos_e = np.full(n, -1)
     pos_e[e] = np.arange(e.size)
@@ -219,13 +231,8 @@ def reduce_disk_cyclic(
     finally:
         fac.free()
     mu_be = -(Kbe @ Phi) / Lam + Mbe @ Phi  # (n_b, n_k)
-    # The partitioned FE matrices are done with: free them before the frame rotations' temporaries (the peak).
+    # The partitioned FE matrices are done with: free them before the circulant averaging's temporaries (the peak).
     del Ke, Me, Kee, Keb, Mee, Meb, Kbe, Mbe, Kbb1, Mbb1
-    # Slot frames: rows of every slot with their own rotation, columns of slot 1 with slot 1's.
-    kap = _rotate(rots[: n_i // 3], _rotate(rots, kap, True).T, True).T
-    mu = _rotate(rots[: n_i // 3], _rotate(rots, mu, True).T, True).T
-    mu_be = _rotate(rots, mu_be, True)
-    out_b1 = _rotate(rots[: n_i // 3], out_b1.T, True).T
     kappa_col = _sym_circulant(kap.reshape(N, n_i, n_i))
     mu_col = _sym_circulant(mu.reshape(N, n_i, n_i))
     # C_d and C_(−d)ᵀ come from different constraint modes: their difference measures how cyclic the disk is

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from ema import EMAError
-from ema.mac import distinct_mac, mac, mac_paired
+from ema.mac import ScaledRows, distinct_mac, mac, mac_paired
 
 
 def _direct(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -74,3 +74,23 @@ def test_distinct_mac_bound():
     assert distinct_mac(1.0) == pytest.approx(1.0)
     assert distinct_mac(0.5) == pytest.approx(0.0, abs=1e-15)
     assert distinct_mac(0.0) == pytest.approx(0.0, abs=1e-15)
+
+
+def test_scaled_rows_give_mac_paired_bit_for_bit():
+    """Scaling each vector once, then gathering pairs (in any blocks), gives mac_paired's values exactly."""
+    rng = np.random.default_rng(3)
+    v = rng.standard_normal((40, 9)) + 1j * rng.standard_normal((40, 9))
+    v[3] *= 1e-150  # the scaling must keep its squares in range
+    v[7] *= 1e150
+    v[11] = 0.0
+    i, j = rng.integers(0, 40, 500), rng.integers(0, 40, 500)
+    s = ScaledRows.of(v)
+    expected = mac_paired(v[i], v[j])
+    assert np.array_equal(s.mac(i, s, j), expected)
+    assert np.array_equal(s.mac(i, s, j, block_entries=9 * 7), expected)  # 7 pairs per block
+    w = rng.standard_normal((5, 9))
+    assert np.array_equal(ScaledRows.of(w).mac([0, 4], s, [7, 11]), mac_paired(w[[0, 4]], v[[7, 11]]))
+    with pytest.raises(EMAError, match="row indices"):
+        s.mac([0, 1], s, [2])
+    with pytest.raises(EMAError, match="2-D"):
+        ScaledRows.of(np.ones(3))
