@@ -47,7 +47,15 @@ from .craig_bampton import disk_boundary_dofs
 from .errors import ROMError
 from .fe_assembly import AssemblyModes
 from .modal import dense_modes
-from .rom_assembly import _blade_part, _check_pattern, _deltas, _every_slot, _grid_shape, _meas_labels
+from .rom_assembly import (
+    DEFAULT_FORMULATION,
+    _blade_part,
+    _check_pattern,
+    _deltas,
+    _every_slot,
+    _grid_shape,
+    _meas_labels,
+)
 from .rubin import RubinModel
 from .solver import available_backends, factorize, solve_modes_factored
 
@@ -408,7 +416,7 @@ def solve_full_cyclic(
     n_cc: int | None = None,
     n_local_modes: int = DEFAULT_N_LOCAL_MODES,
     rounds: int = DEFAULT_ROUNDS,
-    formulation: str = "exact",
+    formulation: str = DEFAULT_FORMULATION,
 ) -> CyclicSolution:
     """Lowest elastic modes of the full bladed disk on a :class:`CyclicDiskModel` (module notes).
 
