@@ -26,6 +26,7 @@ from __future__ import annotations
 import hashlib
 import json
 import multiprocessing
+import os
 import shutil
 import time
 from collections.abc import Callable
@@ -454,6 +455,10 @@ def _disk_job(job: tuple[str, Path, bool, str]) -> float:
     from rom.errors import ROMError
 
     kind, cache_dir, forked, key = job
+    if forked and kind == "cyclic":
+        # Only the full-assembly solves need the cyclic disk, late in the run, while the CB disk and the EMA
+        # hold up the next stage: at a lower priority the cyclic build takes the cores they leave idle.
+        os.nice(5)
     t = time.perf_counter()
     with threadpool_limits(1 if forked else None):
         if kind == "cb":
@@ -701,7 +706,6 @@ def run_campaign(campaign: Campaign, opts: RunOptions = RunOptions(),
         t1 = time.perf_counter()
         say("reduced models (from the cache; the first build takes a few minutes at the default level)")
         bd = load_model(campaign)
-        blade = cache.cached_reduce_blade(bd, cache_dir=cache_dir)
         # The two disk builds, the long ones, run in forked processes of their own, side by side: the one-slot
         # CB (the d1b ROMs, needed first) and the cyclic all-slot CB (the full-assembly solves, needed later).
         disk_key = cache.disk_key(bd)  # hashes the disk's K and M (~2 s): once per run
@@ -718,6 +722,8 @@ def run_campaign(campaign: Campaign, opts: RunOptions = RunOptions(),
             handles = {kind: disk_bg.submit(_disk_job, (kind, cache_dir, disk_bg.pool is not None, key), label)
                        for kind, key, label in builds}
             disk_job, cyclic_job = handles.get("cb"), handles.get("cyclic")
+        # The blade after the disk builds have started: the CB disk is the longer way to the dataset.
+        blade = cache.cached_reduce_blade(bd, cache_dir=cache_dir)
         rom_s = time.perf_counter() - t1
         if ema_bg is not None:
             ema_bg.wait()

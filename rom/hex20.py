@@ -78,17 +78,22 @@ def _gauss(n: int = 3) -> tuple[np.ndarray, np.ndarray]:
 
 _GP, _GW = _gauss(3)
 _N, _DN = shape_functions(_GP)
+_DN_T = np.ascontiguousarray(_DN.transpose(0, 2, 1))  # (q, 3, 20)
 
 
 def _geometry(Xe: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Physical shape-function gradients (E, q, 20, 3) and |J|·w (E, q) for element coordinates (E, 20, 3)."""
-    J = np.einsum("qna,enb->eqab", _DN, Xe)
+    # J = ∂x/∂ξ (E, q, 3, 3) by batched matmuls (einsum is ~5× slower). The derivatives of the shape
+    # functions sum to zero, so J only sees coordinates relative to the element: centring them first keeps
+    # the element's size from cancelling against its distance to the origin (ulps of J, not hundreds).
+    Xe = Xe - Xe.mean(axis=1, keepdims=True)
+    J = np.matmul(_DN_T[None], Xe[:, None])
     det = np.linalg.det(J)
     if np.any(det <= 0.0):
         bad = int(np.argwhere((det <= 0.0).any(axis=1))[0, 0])
         raise ValueError(f"hex20 element {bad} of this chunk is inverted or degenerate (Jacobian ≤ 0)")
     invJ = np.linalg.inv(J)
-    dNdx = np.einsum("qna,eqba->eqnb", _DN, invJ)
+    dNdx = np.matmul(_DN[None], np.swapaxes(invJ, -1, -2))
     return dNdx, det * _GW[None, :]
 
 
@@ -127,30 +132,51 @@ def assemble(
         raise ValueError(f"material must have E > 0, rho > 0 and -1 < nu < 0.5; got E={E}, rho={rho}, nu={nu}")
     lam = E * nu / ((1 + nu) * (1 - 2 * nu))
     mu = E / (2 * (1 + nu))
-    n_dof = 3 * coords.shape[0]
-    eye3 = np.eye(3)
-    k_parts, m_parts, idx_parts = [], [], []
-    for start in range(0, conn.shape[0], chunk):
+    conn = np.asarray(conn, dtype=np.int64)
+    n_nodes, n_el = coords.shape[0], conn.shape[0]
+    # Assemble at node level: every element couples 20 × 20 node pairs, each a 3×3 stiffness block and a
+    # scalar mass (the mass only couples equal directions). Summing 400 blocks per element, not 3 600 scalars,
+    # and building K as a block (BSR) matrix takes a third of the time of a scalar COO assembly.
+    pairs = (conn[:, :, None] * n_nodes + conn[:, None, :]).ravel()  # (n_el·400,) node-pair keys
+    keys, slot = np.unique(pairs, return_inverse=True)
+    del pairs
+    n_pairs = keys.size
+    k_blocks = np.zeros((n_pairs, 9))
+    m_pairs = np.zeros(n_pairs)
+    nn = (_N[:, :, None] * _N[:, None, :]).reshape(_N.shape[0], 400)  # (q, 400): N_n N_m at each Gauss point
+    for start in range(0, n_el, chunk):
         c = conn[start : start + chunk]
+        e = c.shape[0]
+        where = slot[400 * start : 400 * (start + e)]
         dNdx, wdet = _geometry(coords[c])
-        G = dNdx * np.sqrt(wdet)[:, :, None, None]
-        A = np.einsum("eqni,eqmj->enimj", G, G)  # ∫ ∂N_n/∂x_i ∂N_m/∂x_j
-        S = np.einsum("enimi->enm", A)  # ∫ ∇N_n · ∇N_m
-        Ke = lam * A + mu * A.transpose(0, 1, 4, 3, 2) + mu * S[:, :, None, :, None] * eye3[None, None, :, None, :]
-        # The mass only couples equal directions: store the 20×20 scalar block once per direction.
-        m_parts.append(rho * np.einsum("qn,qm,eq->enm", _N, _N, wdet).reshape(c.shape[0], -1))
-        k_parts.append(Ke.reshape(c.shape[0], -1))
-        idx_parts.append(c)
-    nodes = np.concatenate(idx_parts).astype(np.int64)
-    dofs = (3 * nodes[:, :, None] + np.arange(3)[None, None, :]).reshape(nodes.shape[0], 60)
-    rows = np.repeat(dofs, 60, axis=1).ravel()
-    cols = np.tile(dofs, (1, 60)).ravel()
-    K = sp.csr_matrix((np.concatenate(k_parts).ravel(), (rows, cols)), shape=(n_dof, n_dof))
-    del rows, cols
-    mvals = np.concatenate(m_parts).ravel()
-    m_rows = np.concatenate([np.repeat(3 * nodes + d, 20, axis=1).ravel() for d in range(3)])
-    m_cols = np.concatenate([np.tile(3 * nodes + d, (1, 20)).ravel() for d in range(3)])
-    M = sp.csr_matrix((np.tile(mvals, 3), (m_rows, m_cols)), shape=(n_dof, n_dof))
-    K.sum_duplicates()
-    M.sum_duplicates()
+        G = (dNdx * np.sqrt(wdet)[:, :, None, None]).reshape(e, -1, 60)
+        # A[(n, i), (m, j)] = ∫ ∂N_n/∂x_i ∂N_m/∂x_j: one batched GEMM over the Gauss points.
+        A = np.matmul(G.transpose(0, 2, 1), G).reshape(e, 20, 3, 20, 3)
+        S = A[:, :, 0, :, 0] + A[:, :, 1, :, 1] + A[:, :, 2, :, 2]  # ∫ ∇N_n · ∇N_m, (e, 20, 20)
+        # Block entry (i, j) of node pair (n, m): λ A[n,i,m,j] + μ A[n,j,m,i] + μ δ_ij S[n,m].
+        for i in range(3):
+            for j in range(3):
+                kij = lam * A[:, :, i, :, j] + mu * A[:, :, j, :, i]
+                if i == j:
+                    kij += mu * S
+                k_blocks[:, 3 * i + j] += np.bincount(where, weights=kij.ravel(), minlength=n_pairs)
+        m_pairs += np.bincount(where, weights=(rho * (wdet @ nn)).ravel(), minlength=n_pairs)
+    rows, cols = np.divmod(keys, n_nodes)
+    indptr = np.zeros(n_nodes + 1, dtype=np.int64)
+    np.cumsum(np.bincount(rows, minlength=n_nodes), out=indptr[1:])
+    # Keys are sorted, so the pairs come row by row with sorted columns: both matrices are canonical CSR.
+    K = sp.bsr_matrix((k_blocks.reshape(-1, 3, 3), cols, indptr), shape=(3 * n_nodes, 3 * n_nodes)).tocsr()
+    # M = M_nodes ⊗ I₃ written out: DOF row 3a + d holds node row a's pairs at columns 3b + d.
+    dof_ptr = np.zeros(3 * n_nodes + 1, dtype=np.int64)
+    np.cumsum(np.repeat(np.diff(indptr), 3), out=dof_ptr[1:])
+    offset = np.arange(n_pairs) - indptr[rows]
+    m_cols = np.empty(3 * n_pairs, dtype=K.indices.dtype)
+    m_data = np.empty(3 * n_pairs)
+    for d in range(3):
+        at = dof_ptr[3 * rows + d] + offset
+        m_cols[at] = 3 * cols + d
+        m_data[at] = m_pairs
+    M = sp.csr_matrix((m_data, m_cols, dof_ptr.astype(K.indptr.dtype)), shape=(3 * n_nodes, 3 * n_nodes))
+    K.sort_indices()
+    M.sort_indices()
     return K, M
