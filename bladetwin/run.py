@@ -478,12 +478,35 @@ def _cyclic_refused(cache_dir: Path, key: str) -> Path:
     return cache_dir / f"disk-cyclic-{key[:32]}.refused"
 
 
+class _SolveMemo:
+    """The refinement's d1b solves on disk (``refine_pattern``'s ``memo``), one ``.npy`` per grid pair and δ.
+
+    A joint's searches for the three inputs start from the same grids, often the same pair, and share their
+    first polls; the forked workers share the solves through this folder. Writes are atomic; an unreadable
+    entry reads as absent, so it is solved again.
+    """
+
+    def __init__(self, folder: Path) -> None:
+        self.folder = folder
+
+    def get(self, key: str):
+        try:
+            return np.load(self.folder / f"{key}.npy", allow_pickle=False)
+        except (OSError, ValueError):
+            return None
+
+    def __setitem__(self, key: str, value: np.ndarray) -> None:
+        self.folder.mkdir(parents=True, exist_ok=True)
+        with atomic_path(self.folder / f"{key}.npy") as tmp, open(tmp, "wb") as fh:
+            np.save(fh, np.asarray(value, np.float64), allow_pickle=False)
+
+
 def _refine_job(job: tuple) -> str:
     """One joint's compass search (:func:`identify.refine.refine_pattern`), its grids stored in the cache."""
     gray_L, gray_R, target, delta, max_solves, tol_pct, path = job
-    tracker, samplers, feat = _MODELS["refine"]
+    tracker, samplers, feat, memo = _MODELS["refine"]
     r = refine_pattern(tracker, *samplers, target, feat, gray_L, gray_R, delta=delta, max_solves=max_solves,
-                       tol_pct=tol_pct)
+                       tol_pct=tol_pct, memo=memo)
     _save_npz(path, L=r.pattern.L, R=r.pattern.R, error_pct=r.error_pct, start_error_pct=r.start_error_pct,
               n_solves=r.n_solves)
     return path.name
@@ -521,7 +544,10 @@ def _refine_stage(sets: dict, joints: np.ndarray, known, sp, films, tracker: Mod
     bg = None
     if todo:
         say(f"refining {len(todo)} joint patterns (≤ {opts.refine} d1b solves each)")
-        _MODELS["refine"] = (tracker, samplers, feat)
+        # The solves depend on the d1b ROM and the tracker's reference modes only (not on the family).
+        solves = cache.hash_inputs("refine-solves", model_key(tracker.disk, tracker.blade, tracker.formulation),
+                                   tracker.shapes, tracker.weight, int(tracker.n_extra))[:32]
+        _MODELS["refine"] = (tracker, samplers, feat, _SolveMemo(folder / f"solves-{solves}"))
         bg = _Background(opts.workers, say)
     out = {}
     try:

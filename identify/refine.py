@@ -26,7 +26,9 @@ closer contact area (docs/identify.md gives the figures on the virtual campaigns
 
 from __future__ import annotations
 
+import hashlib
 import numbers
+from collections.abc import MutableMapping
 from dataclasses import dataclass
 
 import numpy as np
@@ -139,6 +141,7 @@ def refine_pattern(
     max_solves: int = 100,
     max_sigma: float = 4.0,
     tol_pct: float = 0.0,
+    memo: MutableMapping[str, np.ndarray] | None = None,
 ) -> RefinedPattern:
     """Refine one joint's pattern pair by a compass search (module docstring).
 
@@ -165,6 +168,12 @@ def refine_pattern(
         Stop once the error is at most this, %. For measured targets, the model error's size (e.g. the ROM's
         scatter against the filmed joints): fitting a measurement closer than its model error fits that
         error, not the contact (the discrepancy principle). Default 0: the numerical input has none.
+    memo : mutable mapping of str to ndarray, optional
+        Tracked frequencies (Hz, shape (n_modes,)) of the grids already solved with this ``tracker``, keyed
+        by a hash of the two grids and ``delta``. It is read before each solve and written after it. Share
+        one memo between searches of the same joint, e.g. for several targets, since their first polls
+        coincide. A memo hit counts against ``max_solves`` like a solve, so the search and its result do
+        not depend on the memo.
 
     Returns
     -------
@@ -213,7 +222,7 @@ def refine_pattern(
             elif n_solved[0] >= max_solves:
                 return np.inf  # out of budget: not scored, not cached
             else:
-                f = tracker.track(ContactPattern(gL, gR), delta).frequencies_hz[feats]
+                f = _tracked(tracker, gL, gR, delta, memo)[feats]
                 n_solved[0] += 1
                 scores[key] = float(np.mean(np.abs(f / target - 1)))
         return scores[key]
@@ -250,3 +259,20 @@ def refine_pattern(
             step = step / 2
     kL, kR, tL, tR, gL, gR = decode(x)
     return RefinedPattern(ContactPattern(gL, gR), kL, kR, tL, tR, 100 * best, 100 * start, n_solved[0])
+
+
+def _tracked(tracker: ModeTracker, gL: np.ndarray, gR: np.ndarray, delta,
+             memo: MutableMapping[str, np.ndarray] | None) -> np.ndarray:
+    """Tracked frequencies (Hz, shape (n_modes,)) of the grids (gL, gR) at ``delta``, from ``memo`` if there."""
+    if memo is None:
+        return tracker.track(ContactPattern(gL, gR), delta).frequencies_hz
+    d = np.atleast_1d(np.asarray(0.0 if delta is None else delta, np.float64))
+    h = hashlib.sha256()
+    for a in (np.asarray(gL.shape, np.int64), gL, gR, d):
+        h.update(np.ascontiguousarray(a).tobytes())
+    key = h.hexdigest()[:32]
+    f = memo.get(key)
+    if f is None or np.shape(f) != (tracker.n_modes,):
+        f = tracker.track(ContactPattern(gL, gR), delta).frequencies_hz
+        memo[key] = f
+    return np.asarray(f, np.float64)

@@ -100,3 +100,31 @@ def test_refinement_refuses_bad_input(setup):
     with pytest.raises(IdentifyError, match=r"maps must have shape \(n, 3, 7\)"):
         refine_pattern(tracker, *samplers, f_target, feat, np.zeros((4, 4)), sp.gray_R[0])
     assert GRID == (3, 7)
+
+
+
+def test_a_shared_memo_saves_solves_and_changes_no_result(setup, monkeypatch):
+    """Two targets from one start share their first poll; through a memo the second search solves less."""
+    sp, ds, tracker, samplers, target, feat, f_target = setup
+    other = f_target * (1 + np.array([0.002, -0.001, 0.001])[: len(feat)])
+    plain = [refine_pattern(tracker, *samplers, f, feat, sp.gray_L[1], sp.gray_R[2], delta=DELTA, max_solves=20)
+             for f in (f_target, other)]
+    calls = []
+    track = ModeTracker.track
+    monkeypatch.setattr(ModeTracker, "track", lambda self, p, d=None: calls.append(1) or track(self, p, d))
+    memo: dict = {}
+    shared = [refine_pattern(tracker, *samplers, f, feat, sp.gray_L[1], sp.gray_R[2], delta=DELTA, max_solves=20,
+                             memo=memo) for f in (f_target, other)]
+    for a, b in zip(plain, shared, strict=True):  # the memo changes no decision: hits count as solves
+        assert np.array_equal(a.pattern.L, b.pattern.L) and np.array_equal(a.pattern.R, b.pattern.R)
+        assert (a.error_pct, a.start_error_pct, a.n_solves) == (b.error_pct, b.start_error_pct, b.n_solves)
+    # Every grid was solved once: the second search's first poll came from the memo.
+    assert len(calls) == len(memo) < plain[0].n_solves + plain[1].n_solves
+    # An entry holds every tracked mode (Hz), not only the features: a memo serves any target.
+    key, f = next(iter(memo.items()))
+    assert isinstance(key, str) and f.shape == (tracker.n_modes,)
+    # Another δ is another key: the same grids at another δ are solved again.
+    calls.clear()
+    refine_pattern(tracker, *samplers, f_target, feat, sp.gray_L[1], sp.gray_R[2], delta=2 * DELTA, max_solves=3,
+                   memo=memo)
+    assert len(calls) == 3
