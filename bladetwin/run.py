@@ -894,14 +894,15 @@ def _identify_and_validate(campaign, opts, say, timings, t_all, notes, outcomes,
         # the bias correction, bias and scatter together), not below it; the numerical input has none.
         tol_exp = float(100 * np.mean(spread[feat]))
         sets = {}
-        # The numerical input first: with no model error to stop at, its searches take the longest, and its
-        # full-assembly solve then runs beside the others' searches instead of alone at the end.
-        if reference is not None:
-            sets["numerical"] = (pred_num, labels_num, f_num, 0.0)
+        # The measured inputs first: they stop at the model error, so their searches are short and their
+        # full-assembly solves run beside the numerical input's searches. Those have no error to stop at,
+        # take the longest, and begin with the polls the measured inputs already solved (the memo).
         sets["experimental"] = (pred_exp, labels_exp, f_exp / (1 + bias[feat]), tol_exp)
         if opts.bias:
             tol_raw = float(100 * np.mean(np.hypot(bias[feat], spread[feat])))
             sets["experimental_no_bias"] = (pred_raw, labels_raw, f_exp, tol_raw)
+        if reference is not None:
+            sets["numerical"] = (pred_num, labels_num, f_num, 0.0)
         full_name = {"numerical": "numerical", "experimental": "identified",
                      "experimental_no_bias": "identified_no_bias"}
         refined = _refine_stage(sets, joints, known, sp, films, tracker, feat, delta_all, opts, solves.cache_dir,
