@@ -492,7 +492,7 @@ class _SolveMemo:
     def get(self, key: str):
         try:
             return np.load(self.folder / f"{key}.npy", allow_pickle=False)
-        except (OSError, ValueError):
+        except (OSError, ValueError, EOFError):
             return None
 
     def __setitem__(self, key: str, value: np.ndarray) -> None:
@@ -894,9 +894,10 @@ def _identify_and_validate(campaign, opts, say, timings, t_all, notes, outcomes,
         # the bias correction, bias and scatter together), not below it; the numerical input has none.
         tol_exp = float(100 * np.mean(spread[feat]))
         sets = {}
-        # The measured inputs first: they stop at the model error, so their searches are short and their
-        # full-assembly solves run beside the numerical input's searches. Those have no error to stop at,
-        # take the longest, and begin with the polls the measured inputs already solved (the memo).
+        # The identification proper first, the numerical input (a check against the reference) last. The
+        # three inputs share most of their solves through the memo, so whichever comes later is nearly free;
+        # the measured inputs' full-assembly solves then run beside the last searches, and only the
+        # numerical one is left for the end (design §8.17).
         sets["experimental"] = (pred_exp, labels_exp, f_exp / (1 + bias[feat]), tol_exp)
         if opts.bias:
             tol_raw = float(100 * np.mean(np.hypot(bias[feat], spread[feat])))

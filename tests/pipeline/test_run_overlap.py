@@ -66,3 +66,19 @@ def test_disks_build_in_forked_processes_after_the_parent_ran_pardiso(tmp_path):
     np.testing.assert_allclose(forked_c.Lambda, here_c.Lambda, rtol=1e-9)
     np.testing.assert_allclose(forked_c.kappa_col, here_c.kappa_col, rtol=1e-9,
                                atol=1e-9 * np.abs(here_c.kappa_col).max())
+
+
+def test_the_refinement_solve_memo_round_trips_and_reads_damage_as_absent(tmp_path):
+    """The forked searches share their solves through a folder: atomic entries; a damaged one is solved again."""
+    from bladetwin.run import _SolveMemo
+
+    memo = _SolveMemo(tmp_path / "solves")
+    assert memo.get("a" * 32) is None  # nothing yet, not even the folder
+    f = np.array([101.5, 202.25, 303.125])
+    memo["a" * 32] = f
+    np.testing.assert_array_equal(memo.get("a" * 32), f)
+    assert [p.name for p in (tmp_path / "solves").iterdir()] == ["a" * 32 + ".npy"]  # no temporary left
+    (tmp_path / "solves" / ("b" * 32 + ".npy")).write_bytes(b"\x93NUMPY truncated")
+    assert memo.get("b" * 32) is None
+    (tmp_path / "solves" / ("c" * 32 + ".npy")).write_bytes(b"")
+    assert memo.get("c" * 32) is None
