@@ -545,9 +545,9 @@ def _refine_stage(sets: dict, joints: np.ndarray, known, sp, films, tracker: Mod
     if todo:
         say(f"refining {len(todo)} joint patterns (≤ {opts.refine} d1b solves each)")
         # The solves depend on the d1b ROM and the tracker's reference modes only (not on the family).
-        solves = cache.hash_inputs("refine-solves", model_key(tracker.disk, tracker.blade, tracker.formulation),
-                                   tracker.shapes, tracker.weight, int(tracker.n_extra))[:32]
-        _MODELS["refine"] = (tracker, samplers, feat, _SolveMemo(folder / f"solves-{solves}"))
+        memo_key = cache.hash_inputs("refine-solves", model_key(tracker.disk, tracker.blade, tracker.formulation),
+                                     tracker.shapes, tracker.weight, int(tracker.n_extra))[:32]
+        _MODELS["refine"] = (tracker, samplers, feat, _SolveMemo(folder / f"solves-{memo_key}"))
         bg = _Background(opts.workers, say)
     out = {}
     try:

@@ -18,7 +18,7 @@ from .dataset import Dataset, build_dataset, grid_from_deltas, load_dataset, sav
 from .errors import IdentifyError
 from .film import FilmGeometry, FilmMap, contact_pattern, load_image, map_film, otsu_threshold, read_film
 from .knn import ExtrapolationWarning, TwoStepKNN, TwoStepMatch, dataset_xy, query_matrix
-from .refine import RefinedPattern, refine_pattern
+from .refine import RefinedPattern, SolveMemo, refine_pattern
 from .sampler import PatternSampler, SideSample, SyntheticPatterns, draw_coefficients, sample_patterns
 from .sensitivity import Sensitivity, model_key  # the function: identify.sensitivity.sensitivity
 from .tracking import ModeTracker, TrackedModes
@@ -43,7 +43,7 @@ __all__ = [
     "FilmGeometry", "FilmMap", "contact_pattern", "load_image", "map_film", "otsu_threshold", "read_film",
     "PatternSampler", "SideSample", "SyntheticPatterns", "draw_coefficients", "sample_patterns",
     "ExtrapolationWarning", "TwoStepKNN", "TwoStepMatch", "dataset_xy", "query_matrix",
-    "RefinedPattern", "refine_pattern",
+    "RefinedPattern", "SolveMemo", "refine_pattern",
     "D1BValidation", "GeometricValidation", "GridError", "ModeComparison", "compare_modes",
     "contact_area_fraction", "contact_centroid", "d1b_validation", "geometric_validation", "grid_error",
     "pair_patterns",

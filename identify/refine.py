@@ -28,8 +28,8 @@ from __future__ import annotations
 
 import hashlib
 import numbers
-from collections.abc import MutableMapping
 from dataclasses import dataclass
+from typing import Protocol
 
 import numpy as np
 
@@ -39,12 +39,23 @@ from .errors import IdentifyError
 from .sampler import PatternSampler, _non_collinear
 from .tracking import ModeTracker
 
-__all__ = ["RefinedPattern", "refine_pattern"]
+__all__ = ["RefinedPattern", "SolveMemo", "refine_pattern"]
 
 #: First step along a PCA coordinate, in σ_z.
 KAPPA_STEP = 0.5
 #: First step of the contact level, in standard deviations of the known maps' values.
 LEVEL_STEP = 0.15
+
+
+class SolveMemo(Protocol):
+    """What :func:`refine_pattern` needs of a memo: ``get(key)`` (``None`` if absent) and ``memo[key] = value``.
+
+    A ``dict`` will do; ``bladetwin run`` keeps one on disk for its forked workers.
+    """
+
+    def get(self, key: str, /) -> np.ndarray | None: ...
+
+    def __setitem__(self, key: str, value: np.ndarray, /) -> None: ...
 
 
 @dataclass(frozen=True, eq=False)
@@ -141,7 +152,7 @@ def refine_pattern(
     max_solves: int = 100,
     max_sigma: float = 4.0,
     tol_pct: float = 0.0,
-    memo: MutableMapping[str, np.ndarray] | None = None,
+    memo: SolveMemo | None = None,
 ) -> RefinedPattern:
     """Refine one joint's pattern pair by a compass search (module docstring).
 
@@ -168,12 +179,12 @@ def refine_pattern(
         Stop once the error is at most this, %. For measured targets, the model error's size (e.g. the ROM's
         scatter against the filmed joints): fitting a measurement closer than its model error fits that
         error, not the contact (the discrepancy principle). Default 0: the numerical input has none.
-    memo : mutable mapping of str to ndarray, optional
-        Tracked frequencies (Hz, shape (n_modes,)) of the grids already solved with this ``tracker``, keyed
-        by a hash of the two grids and ``delta``. It is read before each solve and written after it. Share
-        one memo between searches of the same joint, e.g. for several targets, since their first polls
-        coincide. A memo hit counts against ``max_solves`` like a solve, so the search and its result do
-        not depend on the memo.
+    memo : SolveMemo, optional
+        A mapping, e.g. a ``dict``, of tracked frequencies (Hz, shape (n_modes,)) of the grids already
+        solved with this ``tracker``, keyed by a hash of the two grids and ``delta``. It is read before each
+        solve and written after it. Share one memo between searches of the same joint, e.g. for several
+        targets, since their first polls coincide. A memo hit counts against ``max_solves`` like a solve,
+        so the search and its result do not depend on the memo.
 
     Returns
     -------
@@ -262,7 +273,7 @@ def refine_pattern(
 
 
 def _tracked(tracker: ModeTracker, gL: np.ndarray, gR: np.ndarray, delta,
-             memo: MutableMapping[str, np.ndarray] | None) -> np.ndarray:
+             memo: SolveMemo | None) -> np.ndarray:
     """Tracked frequencies (Hz, shape (n_modes,)) of the grids (gL, gR) at ``delta``, from ``memo`` if there."""
     if memo is None:
         return tracker.track(ContactPattern(gL, gR), delta).frequencies_hz
