@@ -23,6 +23,7 @@ Computing lives here; :mod:`bladetwin.run_outputs` writes the tables, figures an
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import json
 import multiprocessing
@@ -458,7 +459,8 @@ def _disk_job(job: tuple[str, Path, bool, str]) -> float:
     if forked and kind == "cyclic":
         # Only the full-assembly solves need the cyclic disk, late in the run, while the CB disk and the EMA
         # hold up the next stage: at a lower priority the cyclic build takes the cores they leave idle.
-        os.nice(5)
+        with contextlib.suppress(OSError):  # a priority is a preference: where it is refused, build anyway
+            os.nice(5)
     t = time.perf_counter()
     with threadpool_limits(1 if forked else None):
         if kind == "cb":
