@@ -277,9 +277,10 @@ def _tracked(tracker: ModeTracker, gL: np.ndarray, gR: np.ndarray, delta,
     """Tracked frequencies (Hz, shape (n_modes,)) of the grids (gL, gR) at ``delta``, from ``memo`` if there."""
     if memo is None:
         return tracker.track(ContactPattern(gL, gR), delta).frequencies_hz
-    d = np.atleast_1d(np.asarray(0.0 if delta is None else delta, np.float64))
+    # δ's shape is part of the key: a scalar δ perturbs every blade mode, a vector only its first entries.
+    d = np.zeros(0) if delta is None else np.asarray(delta, np.float64)
     h = hashlib.sha256()
-    for a in (np.asarray(gL.shape, np.int64), gL, gR, d):
+    for a in (np.asarray(gL.shape, np.int64), gL, gR, np.asarray((delta is None, d.ndim, d.size), np.int64), d):
         h.update(np.ascontiguousarray(a).tobytes())
     key = h.hexdigest()[:32]
     f = memo.get(key)

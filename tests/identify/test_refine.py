@@ -123,8 +123,10 @@ def test_a_shared_memo_saves_solves_and_changes_no_result(setup, monkeypatch):
     # An entry holds every tracked mode (Hz), not only the features: a memo serves any target.
     key, f = next(iter(memo.items()))
     assert isinstance(key, str) and f.shape == (tracker.n_modes,)
-    # Another δ is another key: the same grids at another δ are solved again.
-    calls.clear()
-    refine_pattern(tracker, *samplers, f_target, feat, sp.gray_L[1], sp.gray_R[2], delta=2 * DELTA, max_solves=3,
-                   memo=memo)
-    assert len(calls) == 3
+    # Another δ is another key: the same grids at another δ are solved again. So is a scalar δ beside the
+    # vector of its value: the scalar perturbs every blade mode, the vector only the first.
+    for delta in (2 * DELTA, DELTA[0], DELTA[:1]):
+        calls.clear()
+        refine_pattern(tracker, *samplers, f_target, feat, sp.gray_L[1], sp.gray_R[2], delta=delta, max_solves=3,
+                       memo=memo)
+        assert len(calls) == 3, delta
