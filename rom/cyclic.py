@@ -7,11 +7,13 @@ a few hundred vectors.
 **The disk, once** (:func:`reduce_disk_cyclic`): a Craig–Bampton model with *every* slot's contact grid as
 boundary (N · n_i DOFs, 23 436 for the default disk). Its boundary blocks are block-circulant in the slots'
 own frames, κ_bb[s, t] = C_((s − t) mod N), because the disk is N identical sectors and the slot frames
-rotate with them. So slot 1's n_i constraint modes give every block, at the cost of the one-slot CB; the
-blocks are checked to be circulant to 1e-6 and the disk is refused otherwise. The mass coupling of each
-slot to the fixed-interface modes needs no constraint mode: μ_be = −K_be Φ Λ⁻¹ + M_be Φ, because
-K_ee⁻¹ M_ee Φ = Φ Λ⁻¹. The characteristic-constraint (CC) modes of the boundary, harmonic by harmonic, are
-stored too: eigenvectors of (Ĉ_h, D̂_h), the slot-DFT of the stiffness and mass blocks.
+rotate with them. :mod:`rom.cyclic_sector` computes the model exactly from one sector: sector 1's interior
+condensed statically onto its slot and both faces (once, real), then per harmonic h = 0 … N/2 the faces
+eliminated densely, which gives Ĉ_h and D̂_h, the slot-DFT of the stiffness and mass blocks, and the
+clamped disk's modes of that harmonic (shift-invert Lanczos on the same factors). The whole 148 k-DOF disk
+interior is never factorized (45.7 s instead of 93–100 s; docs/rom.md §4.4). K and M are checked to be
+cyclic first and the disk is refused otherwise. The characteristic-constraint (CC) modes of the boundary,
+harmonic by harmonic, are stored too: eigenvectors of (Ĉ_h, D̂_h).
 
 **Each solve** (:func:`solve_full_cyclic`) is a Rayleigh–Ritz on the all-slot CB model with the blades
 (exact contact ties, the blades' Rubin super-elements, Eqs. 19–22), whose K and M are applied block by block
@@ -39,11 +41,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import scipy.linalg as sla
-import scipy.sparse as sp
 
 from .academic import BladedDisk
 from .contact import ContactPattern
 from .craig_bampton import disk_boundary_dofs
+from .cyclic_sector import reduce_sectors, sector_blocks
 from .errors import ROMError
 from .fe_assembly import AssemblyModes
 from .modal import dense_modes
@@ -57,7 +59,6 @@ from .rom_assembly import (
     _meas_labels,
 )
 from .rubin import RubinModel
-from .solver import available_backends, factorize, solve_modes_factored
 
 __all__ = [
     "CyclicDiskModel",
@@ -150,29 +151,17 @@ class CyclicDiskModel:
         return self.mu_col[(s - t) % self.n_slots]
 
 
-def _frames(rots: np.ndarray) -> sp.csr_matrix:
-    """T = blockdiag(R_j), shape (3 n, 3 n): x_global = T x_frame for node frames ``rots`` of shape (n, 3, 3)."""
-    n = rots.shape[0]
-    return sp.bsr_matrix((np.ascontiguousarray(rots, dtype=np.float64), np.arange(n), np.arange(n + 1)),
-                         shape=(3 * n, 3 * n)).tocsr()
-
-
-def _sym_circulant(col: np.ndarray) -> np.ndarray:
-    """Average each block with the transpose of its mirror: C_d = C_(−d)ᵀ holds for a symmetric matrix."""
-    N = col.shape[0]
-    mirror = col[(-np.arange(N)) % N].transpose(0, 2, 1)
-    return 0.5 * (col + mirror)
-
-
 def reduce_disk_cyclic(
     bd: BladedDisk,
     n_modes: int = DEFAULT_N_CYCLIC_MODES,
     *,
     n_cc: int = DEFAULT_N_CC,
-    block_size: int = 64,
     backend: str = "auto",
 ) -> CyclicDiskModel:
     """Cyclic Craig–Bampton model of the academic disk with every slot's grid as boundary (module notes).
+
+    Computed from one sector and its harmonics (:mod:`rom.cyclic_sector`): exactly the all-slot CB model's
+    blocks, without factorizing the whole disk.
 
     Parameters
     ----------
@@ -182,97 +171,51 @@ def reduce_disk_cyclic(
         Fixed-interface modes n_k (all slots clamped).
     n_cc : int
         CC modes stored per harmonic.
-    block_size : int
-        Right-hand sides per constraint-mode block solve.
+    backend : {"auto", "pardiso", "superlu"}
+        Factorization of the sector interior.
+
+    Raises
+    ------
+    ROMError
+        If the disk is not cyclic (mesh, slot frames, K or M), or for a bad ``n_cc``.
     """
     t_all = time.perf_counter()
     N = bd.n_slots
-    dofs, rots = disk_boundary_dofs(bd, range(1, N + 1))
-    n_b = dofs.size
-    n_i = n_b // N
-    n = bd.disk.n_dof
+    n_i = disk_boundary_dofs(bd, [1])[0].size
     if not (isinstance(n_cc, (int, np.integer)) and 1 <= n_cc <= n_i):
         raise ROMError(f"n_cc must be an integer in 1..{n_i}, got {n_cc!r}")
-    is_b = np.zeros(n, bool)
-    is_b[dofs] = True
-    e = np.flatnonzero(~is_b)
-    K, M = bd.disk.K.tocsr(), bd.disk.M.tocsr()
-    Ke, Me = K[e], M[e]
-    # Every boundary block in the slots' frames from the start: the sparse couplings are rotated (3×3 blocks
-    # per node), so the dense blocks come out rotated and need no pass of their own.
-    T = _frames(rots)
-    T1 = T[:n_i, :n_i]
-    Kee, Mee = Ke[:, e].tocsr(), Me[:, e].tocsr()
-    Keb, Meb = (Ke[:, dofs[:n_i]] @ T1).tocsc(), (Me[:, dofs[:n_i]] @ T1).tocsc()  # slot 1's columns
-    Kbe, Mbe = (T.T @ Ke[:, dofs].T).tocsr(), (T.T @ Me[:, dofs].T).tocsr()
-    b1 = dofs[:n_i]
-    # Sparse: only slot 1's own rows are non-zero (densified a block at a time below, not 2 × 244 MB whole).
-    Kbb1 = (T.T @ K[dofs][:, b1] @ T1).tocsc()
-    Mbb1 = (T.T @ M[dofs][:, b1] @ T1).tocsc()
-    meas = 3 * bd.disk.node_set("meas").ravel() + int(bd.disk.meta["meas_direction"]) - 1
-    pos_e = np.full(n, -1)
-    pos_e[e] = np.arange(e.size)
-    if np.any(pos_e[meas] < 0):
-        raise ROMError("a disk measurement DOF lies on a slot's contact grid; the cyclic CB cannot output it")
-    backend = "pardiso" if backend == "auto" and "pardiso" in available_backends() else backend
-    fac = factorize(Kee, backend)
-    try:
-        t0 = time.perf_counter()
-        sol = solve_modes_factored(Kee, Mee, int(n_modes), fac)
-        Phi, Lam = sol.shapes, sol.omega2
-        log.info("cyclic CB: %d fixed-interface modes (all slots clamped) in %.1f s", n_modes, time.perf_counter() - t0)
-        t0 = time.perf_counter()
-        kap = np.empty((n_b, n_i))
-        mu = np.empty((n_b, n_i))
-        out_b1 = np.empty((meas.size, n_i))
-        # Slot 1's constraint modes and the first block column of Eq. 6, as in craig_bampton (μ_bb's Ψᵀ W_j
-        # as −K_be (K_ee⁻¹ W_j)).
-        for j0 in range(0, n_i, block_size):
-            j1 = min(j0 + block_size, n_i)
-            Psi_j = -np.asarray(fac.solve(Keb[:, j0:j1].toarray())).reshape(e.size, j1 - j0)
-            W = Mee @ Psi_j + Meb[:, j0:j1].toarray()
-            Y = np.asarray(fac.solve(W)).reshape(e.size, j1 - j0)
-            kap[:, j0:j1] = Kbb1[:, j0:j1].toarray() + Kbe @ Psi_j
-            mu[:, j0:j1] = -(Kbe @ Y) + Mbe @ Psi_j + Mbb1[:, j0:j1].toarray()
-            out_b1[:, j0:j1] = Psi_j[pos_e[meas]]
-        log.info("cyclic CB: slot 1's %d constraint modes in %.1f s", n_i, time.perf_counter() - t0)
-    finally:
-        fac.free()
-    mu_be = -(Kbe @ Phi) / Lam + Mbe @ Phi  # (n_b, n_k)
-    # The partitioned FE matrices are done with: free them before the circulant averaging's temporaries (the peak).
-    del Ke, Me, Kee, Keb, Mee, Meb, Kbe, Mbe, Kbb1, Mbb1
-    kappa_col = _sym_circulant(kap.reshape(N, n_i, n_i))
-    mu_col = _sym_circulant(mu.reshape(N, n_i, n_i))
-    # C_d and C_(−d)ᵀ come from different constraint modes: their difference measures how cyclic the disk is
-    # (in stiffness and in mass: a disk with one heavier sector has circulant κ_bb blocks).
-    asym = max(float(np.max(np.abs(kap.reshape(N, n_i, n_i) - kappa_col)) / np.max(np.abs(kappa_col[0]))),
-               float(np.max(np.abs(mu.reshape(N, n_i, n_i) - mu_col)) / np.max(np.abs(mu_col[0]))))
-    if asym > 1e-6:
-        raise ROMError(f"the disk is not cyclic to 1e-6 (its boundary blocks differ by {asym:.1e} relative); "
-                       "use the sparse hybrid (rom.rom_assembly.assemble_full)")
-    cc, cc_mass, cc_w2 = _cc_modes(kappa_col, mu_col, int(n_cc))
-    log.info("cyclic CB: n_e=%d, N=%d slots × n_i=%d, n_k=%d; built in %.1f s", e.size, N, n_i, n_modes,
+    sb = sector_blocks(bd)
+    red = reduce_sectors(sb, int(n_modes), backend)
+    # Ĉ_h = Σ_d C_d e^(−2πi h d / N): the inverse real FFT gives the block column (C_(−d) = C_dᵀ, as Ĉ_h is
+    # Hermitian).
+    kappa_col = np.fft.irfft(red.C_hat, n=N, axis=0)
+    mu_col = np.fft.irfft(red.D_hat, n=N, axis=0)
+    t0 = time.perf_counter()
+    cc, cc_mass, cc_w2 = _cc_modes(red.C_hat, red.D_hat, int(n_cc))
+    log.info("cyclic CB: %d CC modes per harmonic in %.1f s; n_e=%d per sector, N=%d slots × n_i=%d, n_k=%d; "
+             "built in %.1f s", n_cc, time.perf_counter() - t0, sb.n_int + sb.n_face, N, n_i, n_modes,
              time.perf_counter() - t_all)
     return CyclicDiskModel(
-        Lambda=Lam, kappa_col=kappa_col, mu_col=mu_col, mu_be=mu_be.reshape(N, n_i, -1),
-        out_eta=Phi[pos_e[meas]], out_b1=out_b1, cc_modes=cc, cc_mass=cc_mass, cc_omega2=cc_w2,
-        meta={"n_sectors": N, "grid": list(bd.params.grid), "circulant_asymmetry": asym},
+        Lambda=red.Lambda, kappa_col=kappa_col, mu_col=mu_col, mu_be=red.mu_be,
+        out_eta=red.out_eta, out_b1=red.out_b1, cc_modes=cc, cc_mass=cc_mass, cc_omega2=cc_w2,
+        meta={"n_sectors": N, "grid": list(bd.params.grid), "sector_asymmetry": sb.asymmetry},
     )
 
 
-def _cc_modes(kappa_col: np.ndarray, mu_col: np.ndarray, n_cc: int):
-    """The lowest ``n_cc`` CC modes of each harmonic 0..N//2 (eigenvectors of the slot-DFT blocks)."""
-    C_hat = np.fft.rfft(kappa_col, axis=0)  # harmonics 0..N//2: Ĉ_h = Σ_d C_d e^(−2πi h d / N)
-    D_hat = np.fft.rfft(mu_col, axis=0)
+def _cc_modes(C_hat: np.ndarray, D_hat: np.ndarray, n_cc: int):
+    """The lowest ``n_cc`` CC modes of each harmonic 0..N//2: (Ĉ_h − ω² D̂_h) ψ = 0, Ĉ_h and D̂_h Hermitian.
+
+    LAPACK's subset ``eigh`` (8.5 s for the default disk's ten 1 302² pencils). A block shift-invert Lanczos
+    was tried: 0.35–0.65 s a harmonic where it converged, but the free disk's rigid-body pairs at h = 0 and 1
+    (ω² ≈ 0 beside 1e8–1e12 rad²/s²) left it at residuals of 3e-4 after 60 blocks.
+    """
     H, n_i = C_hat.shape[:2]
     psi = np.empty((H, n_i, n_cc), complex)
     dpsi = np.empty_like(psi)
     w2 = np.empty((H, n_cc))
     for h in range(H):
-        A = 0.5 * (C_hat[h] + C_hat[h].conj().T)
-        B = 0.5 * (D_hat[h] + D_hat[h].conj().T)
-        w2[h], psi[h] = sla.eigh(A, B, subset_by_index=[0, n_cc - 1], check_finite=False)
-        dpsi[h] = B @ psi[h]
+        w2[h], psi[h] = sla.eigh(C_hat[h], D_hat[h], subset_by_index=[0, n_cc - 1], check_finite=False)
+        dpsi[h] = D_hat[h] @ psi[h]
     return psi, dpsi, w2
 
 

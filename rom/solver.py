@@ -82,6 +82,12 @@ class _PardisoFactor:
         # size_limit_storage=0: pypardiso keeps a hash, not a copy, for its "same matrix?" check; our solves
         # bypass that check (see the class notes), so a copy of A would only cost memory.
         self._solver = pypardiso.PyPardisoSolver(mtype=2, size_limit_storage=0)
+        # pypardiso looks for MKL's runtime library on every new solver, by a recursive glob over the
+        # environment when the loader cannot name it (0.9 s here, more than factorizing a 16 k-DOF sector
+        # harmonic). Name the library it found once for the solvers that follow.
+        path = getattr(self._solver.libmkl, "_name", None)
+        if path and "PYPARDISO_MKL_RT" not in os.environ:
+            os.environ["PYPARDISO_MKL_RT"] = path
         self._solver.factorize(self._A)
         # After the factorization: with iparm(1) = 0 its first call fills in Pardiso's defaults (iparm(8) = 2).
         self._solver.set_iparm(8, 0)
