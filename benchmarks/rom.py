@@ -224,13 +224,15 @@ def main(argv: list[str] | None = None) -> int:
               f"(model build {r['baseline_gb']:.2f} GB){extra}", flush=True)
     by_step = {r["step"]: r for r in results}
     checks = []
-    if "rom_disk_cb" in by_step:
-        r = by_step["rom_disk_cb"]
-        checks.append(("disk reduction ≤ 60 s, ≤ 4 GB", f"{r['seconds']:.1f} s, {r['peak_gb']:.2f} GB",
-                       r["seconds"] <= 60 and r["peak_gb"] <= 4))
+    # Issue 12 item 4's "disk reduction" is the full assembly's one-time disk build: the cyclic all-slot CB.
+    # The one-slot CB serves the disk–one-blade ROMs; it is held to the same figure as an aim, shown apart.
     if "rom_disk_cyclic" in by_step:
         r = by_step["rom_disk_cyclic"]
         checks.append(("cyclic disk build ≤ 60 s, ≤ 4 GB", f"{r['seconds']:.1f} s, {r['peak_gb']:.2f} GB",
+                       r["seconds"] <= 60 and r["peak_gb"] <= 4))
+    if "rom_disk_cb" in by_step:
+        r = by_step["rom_disk_cb"]
+        checks.append(("one-slot CB (d1b ROMs) ≤ 60 s, ≤ 4 GB (aim)", f"{r['seconds']:.1f} s, {r['peak_gb']:.2f} GB",
                        r["seconds"] <= 60 and r["peak_gb"] <= 4))
     fe = by_step.get("fe_full")
     for name in ("rom_full", "rom_full_cyclic"):
