@@ -18,10 +18,11 @@ computed exactly from sector 1 alone:
    gives Ĉ_h (stiffness) and D̂_h (mass), the slot-DFT of the circulant blocks of Eq. 6; an inverse real FFT
    gives the block column. The face elimination is exact, so these are the all-slot CB's own blocks.
 4. **Fixed-interface modes**: per harmonic, sector 1's interior and face (i, c) with the phase condition on
-   the next sector's face, solved by shift-invert Lanczos on the real form [[A, −B], [B, A]] of the
-   Hermitian matrix A + iB. Each of its eigenvectors [u; v] is one physical mode of the clamped disk,
-   Re((u + iv) e^(i h (s−1) α)) in sector s (a cos/sin pair for 0 < h < N/2), M-orthonormal after scaling
-   by √(2/N) (√(1/N) for h = 0, N/2). The n_k lowest over all harmonics are kept.
+   the next sector's face: shift-invert ARPACK on that Hermitian pencil (complex for 0 < h < N/2), applied
+   through the interior's factor and the face's Cholesky factor of step 3, so no harmonic is factorized.
+   Each complex mode x gives two physical modes of the clamped disk, Re and Im of x e^(i h (s−1) α) in
+   sector s, M-orthonormal after scaling by √(2/N) (one mode and √(1/N) for h = 0, N/2). The n_k lowest over
+   all harmonics are kept.
 
 Every quantity is in sector-local frames: a node of sector s is the rotated copy of a sector-1 node, and its
 displacement is expressed in the frame rotated with it (slot grid nodes in their slot frames). The disk is
@@ -46,15 +47,12 @@ from .craig_bampton import disk_boundary_dofs
 from .errors import ROMError
 from .solver import available_backends, factorize, solve_modes_factored
 
-__all__ = ["SectorBlocks", "sector_blocks", "SectorReduction", "reduce_sectors", "block_modes", "CYCLIC_TOL"]
+__all__ = ["SectorBlocks", "sector_blocks", "SectorReduction", "reduce_sectors", "CYCLIC_TOL"]
 
 log = logging.getLogger(__name__)
 
 #: How far (max-norm relative) K and M may differ from the block-circulant operator of sector 1's couplings.
 CYCLIC_TOL = 1e-6
-#: Block size and residual tolerance of :func:`block_modes` (the CC modes).
-_BLOCK = 16
-_MODE_TOL = 1e-10
 #: Node positions of rotated copies agree to this fraction of the disk radius (trigonometric round-off is 1e-16).
 _POS_TOL = 1e-8
 
@@ -476,69 +474,12 @@ def _clamped_modes(sb: SectorBlocks, n_modes: int, fac, chol: list):
     return np.array([r[0] for r in rows]), mu_be, out_eta
 
 
-def block_modes(K, M, k: int, inv, seed: int, sigma: float = 0.0, block: int = _BLOCK, max_blocks: int = 60):
-    """Lowest ``k`` eigenpairs of a Hermitian pencil (K, M) by block shift-invert Lanczos.
-
-    ``inv.solve`` applies (K − σM)⁻¹ to a block. The Krylov basis is kept M-orthonormal by block classical
-    Gram–Schmidt done twice; a Rayleigh–Ritz step after each block (once the basis holds 2k vectors) stops
-    when every wanted pair has a relative residual ‖Kx − λMx‖ / (‖Kx‖ + (|λ| + |σ|)‖Mx‖) ≤ ``_MODE_TOL``.
-    A block at least as wide as an eigenvalue's multiplicity finds every copy.
-
-    Parameters
-    ----------
-    K, M : sparse or dense, shape (n, n), real or complex Hermitian
-    k : int
-    inv : object with ``solve(B)``
-    seed : int
-        Start block (fixed seed).
-    sigma : float
-        The shift of ``inv`` in (rad/s)².
-
-    Returns
-    -------
-    lam : ndarray, shape (k,)
-        Eigenvalues ω² (rad²/s²), ascending.
-    X : ndarray, shape (n, k)
-        M-orthonormal eigenvectors.
-    """
-    n = K.shape[0]
-    b = min(max(block, k), n // 4)
-    dtype = np.result_type(K.dtype, M.dtype, np.float64)
-    V = np.empty((n, 0), dtype)  # M-orthonormal Krylov basis
-    KV = np.empty((n, 0), dtype)
-    MV = np.empty((n, 0), dtype)
-    X = np.random.default_rng(seed).standard_normal((n, b)).astype(dtype)
-    res = np.array([np.inf])
-    for _ in range(max_blocks):
-        for _ in range(2):  # block CGS2 in the M inner product
-            X -= V @ (MV.conj().T @ X)
-        MX = M @ X
-        # M-orthonormalise the block by its Gram matrix's eigen-decomposition, dropping dependent directions.
-        g, U = np.linalg.eigh(_herm(X.conj().T @ MX))
-        keep = g > 1e-12 * g.max()
-        T = U[:, keep] / np.sqrt(g[keep])
-        X, MX = X @ T, MX @ T
-        V = np.hstack([V, X])
-        KV = np.hstack([KV, K @ X])
-        MV = np.hstack([MV, MX])
-        if V.shape[1] >= 2 * k:
-            lam, Y = np.linalg.eigh(_herm(V.conj().T @ KV))
-            lam, Y = lam[:k], Y[:, :k]
-            KX, MXr = KV @ Y, MV @ Y
-            res = np.linalg.norm(KX - MXr * lam, axis=0) / (
-                np.linalg.norm(KX, axis=0) + (np.abs(lam) + abs(sigma)) * np.linalg.norm(MXr, axis=0))
-            if res.max() <= _MODE_TOL:
-                return lam, V @ Y
-        X = np.asarray(inv.solve(MX)).reshape(n, -1)
-    raise ROMError(f"block Lanczos did not converge (max relative residual {res.max():.1e})")
-
-
 def _harmonic_modes(sb: SectorBlocks, h: int, k: int, fac, L):
     """Lowest ``k`` modes of harmonic h on sector 1's interior and face: ω², M̂-normalised x, μ_be rows of slot 1.
 
     ARPACK on the Hermitian pencil itself (complex for 0 < h < N/2). Its real form [[A, −B], [B, A]] doubles
     every eigenvalue and needed about twice the operator applications; a block Lanczos needed ~3.5× the
-    vectors (24.6 s against 18.1 s for the default disk's 40 modes, design §8.22).
+    vectors (docs/rom.md §4.4).
     """
     N, ni, nc = sb.n_sectors, sb.n_int, sb.n_face
     ne = ni + nc
