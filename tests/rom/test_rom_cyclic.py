@@ -142,6 +142,16 @@ def test_a_disk_that_is_not_cyclic_is_refused(matrix):
         reduce_disk_cyclic(bad, 10)
 
 
+def test_printed_coordinates_still_make_a_cyclic_mesh(small_cyclic):
+    """Node positions known to 1e-8 of the radius (an exported mesh's digits) map onto the same sectors."""
+    bd = rom_models.bladed_disk(N_SMALL)
+    noise = np.random.default_rng(3).uniform(-1, 1, bd.disk.coords.shape)
+    X = bd.disk.coords + 1e-8 * bd.params.disk_outer_radius * noise
+    cd = reduce_disk_cyclic(replace(bd, disk=replace(bd.disk, coords=X)), 60)
+    np.testing.assert_array_equal(cd.kappa_col, small_cyclic.kappa_col)
+    np.testing.assert_array_equal(cd.Lambda, small_cyclic.Lambda)
+
+
 def test_a_mesh_that_is_not_cyclic_is_refused():
     """One node of sector 3 moved by 1 % of the disk radius: sector 3 is no rotated copy of sector 1."""
     bd = rom_models.bladed_disk(N_SMALL)
