@@ -110,6 +110,8 @@ def sector_blocks(bd) -> SectorBlocks:
         If the mesh, the slot frames or K and M are not cyclic, naming what differs.
     """
     N = bd.n_slots
+    if N < 2:
+        raise ROMError(f"the cyclic reduction needs a disk of at least 2 sectors, got {N}")
     X = np.asarray(bd.disk.coords, dtype=np.float64)
     n_nodes = X.shape[0]
     R1 = bd.slot_rotation(1)
@@ -362,7 +364,11 @@ def _harmonics(sb: SectorBlocks, Psi, ZK, ZM):
         Sk = {key: _phase_sum(parts["K", key], h, N) for key in ("cc", "cb", "bb")}
         Sm = {key: _phase_sum(parts["M", key], h, N) for key in ("cc", "cb", "bb")}
         # Ŝ_cc = L Lᴴ, W = L⁻¹ Ŝ_cb: Ĉ = Ŝ_bb − Wᴴ W; the face follows the slot as X = −Ŝ_cc⁻¹ Ŝ_cb = −L⁻ᴴ W.
-        L = sla.cholesky(Sk["cc"], lower=True, check_finite=False)  # reads the lower triangle only
+        try:
+            L = sla.cholesky(Sk["cc"], lower=True, check_finite=False)  # reads the lower triangle only
+        except np.linalg.LinAlgError:
+            raise ROMError(f"harmonic {h}: the disk with every slot clamped is not positive definite at the "
+                           "sector faces; check its stiffness matrix") from None
         W = sla.solve_triangular(L, Sk["cb"], lower=True, check_finite=False)
         C_hat[h] = _herm(Sk["bb"] - _gram(W))
         X = -sla.solve_triangular(L, W, lower=True, trans="C", check_finite=False)
@@ -500,7 +506,7 @@ def _harmonic_modes(sb: SectorBlocks, h: int, k: int, fac, L):
     inv = _HarmonicInverse(fac, hsum(sb.K, I_, C_), hsum(sb.K, C_, I_), L, ni)
     if real:
         sol = solve_modes_factored(Kh, Mh, int(k), inv)
-        lam, x = (2 * np.pi * sol.frequencies_hz) ** 2, sol.shapes
+        lam, x = sol.omega2, sol.shapes
     else:
         lam, x = _complex_modes(Kh, Mh, int(k), inv)
     mb = (hsum(sb.M, Bs, E) @ x) - (hsum(sb.K, Bs, E) @ x) / lam
@@ -520,9 +526,10 @@ def _complex_modes(K, M, k: int, inv, max_rounds: int = 4):
     kk = k
     for _ in range(max_rounds):
         vals, vecs = spla.eigs(K, k=kk, M=M, sigma=0.0, which="LM", OPinv=op, tol=1e-12, v0=v0)
-        order = np.argsort(vals.real)
-        lam, X = vals.real[order], vecs[:, order]
-        X = X / np.sqrt(np.real(np.einsum("ij,ij->j", X.conj(), M @ X)))
+        # The non-Hermitian driver leaves nearly equal eigenvalues' vectors not quite M-orthogonal: a
+        # Rayleigh–Ritz step on them gives M-orthonormal vectors (μ_ηη = I) with the same span.
+        lam, Y = sla.eigh(_herm(vecs.conj().T @ (K @ vecs)), _herm(vecs.conj().T @ (M @ vecs)), check_finite=False)
+        X = vecs @ Y
         if not _missed(K, M, inv, lam, X):
             return lam[:k], X[:, :k]
         kk = min(2 * kk, n - 2)
