@@ -8,8 +8,9 @@ computed exactly from sector 1 alone:
 
 1. **Partition.** Each node gets a sector (its angle about the disk axis, sector s spanning
    [(s − 1.5) α, (s − 0.5) α) around slot s, α = 2π/N) and the node of sector 1 it is a rotated copy of.
-   Sector s's *left face* c_s is its nodes coupled to sector s − 1; b_s its slot grid; i_s the rest. An
-   interior or slot node is coupled only to its own sector and to the next sector's left face.
+   Sector s's *left face* c_s is its nodes coupled to the half of sector s − 1 next to it; b_s its slot
+   grid; i_s the rest. An interior or slot node is coupled only to its own sector and to the next sector's
+   left face (checked).
 2. **Sector condensation** (real, once). Sector 1's interior i_1 is eliminated statically, keeping
    q̃ = [c_1, b_1, c_2]: n_i + 2 n_c right-hand sides on a ~7 k-DOF factor. The ring of sectors then
    reduces to the q_s = [c_s, b_s] of every sector with block-circulant stiffness and mass
