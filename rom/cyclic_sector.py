@@ -46,7 +46,7 @@ from scipy.spatial import cKDTree
 
 from .craig_bampton import disk_boundary_dofs
 from .errors import ROMError
-from .solver import available_backends, factorize, solve_modes_factored
+from .solver import _anything_missed, available_backends, factorize, solve_modes_factored
 
 __all__ = ["SectorBlocks", "sector_blocks", "SectorReduction", "reduce_sectors", "CYCLIC_TOL"]
 
@@ -186,7 +186,7 @@ def sector_blocks(bd) -> SectorBlocks:
     for name in ("K", "M"):
         A = getattr(bd.disk, name).tocsr()
         # Sector 1's rows in local frames, columns in sector-major order.
-        R0 = (_rows_local(Tg, rows.ravel()) @ A @ Tg).tocsc()[:, perm].tocsr()
+        R0 = (Tg[:, rows.ravel()].T @ A @ Tg).tocsc()[:, perm].tocsr()
         R0.eliminate_zeros()
         blk = {}
         for d in range(N):
@@ -210,11 +210,6 @@ def sector_blocks(bd) -> SectorBlocks:
             raise ROMError("a disk measurement DOF lies on a slot's contact grid; the cyclic CB cannot output it")
         meas.append((k, int(sector[nd]), 3 * p + np.arange(3), G[nd].T @ e_dir))
     return SectorBlocks(N, n_int, n_face, 3 * n_bn, blocks["K"], blocks["M"], meas, asym)
-
-
-def _rows_local(Tg: sp.csr_matrix, rows: np.ndarray) -> sp.csr_matrix:
-    """Tᵀ restricted to ``rows``: (Tg[:, rows])ᵀ."""
-    return Tg[:, rows].T.tocsr()
 
 
 def _coupled_to(comp, nodes: np.ndarray, target: np.ndarray) -> np.ndarray:
@@ -387,7 +382,7 @@ def _harmonics(sb: SectorBlocks, Psi, ZK, ZM):
 
 
 def _phase_sum(parts: dict, h: int, N: int):
-    """Σ_d B_d e^(i h d α), real where every phase is (h = 0, N/2, or only d = 0)."""
+    """Σ_d B_d e^(i h d α) (dense or sparse blocks), real where every phase is (h = 0, N/2, or only d = 0)."""
     re = sum(B * math.cos(2 * math.pi * h * d / N) for d, B in parts.items())
     im = [B * math.sin(2 * math.pi * h * d / N) for d, B in parts.items() if (2 * h * d) % N]
     return re + 1j * sum(im) if im else re
@@ -431,9 +426,6 @@ class _HarmonicInverse:
         xc = sla.solve_triangular(self.L, xc, lower=True, trans="C", check_finite=False)
         x = np.vstack([self._kii(z[:ni] - self.Kic @ xc), xc])
         return x.reshape(b.shape)
-
-    def free(self) -> None:
-        """The interior factor belongs to the caller."""
 
 
 def _clamped_modes(sb: SectorBlocks, n_modes: int, fac, chol: list):
@@ -495,12 +487,10 @@ def _harmonic_modes(sb: SectorBlocks, h: int, k: int, fac, L):
     N, ni, nc = sb.n_sectors, sb.n_int, sb.n_face
     ne = ni + nc
     E, Bs, I_, C_ = slice(0, ne), slice(ne, None), slice(0, ni), slice(ni, ne)
-    ph = {d: np.exp(2j * np.pi * h * d / N) for d in range(N)}
     real = h == 0 or 2 * h == N
 
     def hsum(blk, r, c):
-        A = sum(B[r, c] * ph[d] for d, B in blk.items())
-        return A.real.tocsr() if real else A.tocsr()
+        return sp.csr_matrix(_phase_sum({d: B[r, c] for d, B in blk.items()}, h, N))
 
     Kh, Mh = hsum(sb.K, E, E), hsum(sb.M, E, E)
     Kh, Mh = 0.5 * (Kh + Kh.conj().T), 0.5 * (Mh + Mh.conj().T)
@@ -531,20 +521,7 @@ def _complex_modes(K, M, k: int, inv, max_rounds: int = 4):
         # Rayleigh–Ritz step on them gives M-orthonormal vectors (μ_ηη = I) with the same span.
         lam, Y = sla.eigh(_herm(vecs.conj().T @ (K @ vecs)), _herm(vecs.conj().T @ (M @ vecs)), check_finite=False)
         X = vecs @ Y
-        if not _missed(K, M, inv, lam, X):
+        if not _anything_missed(K, M, inv, lam, X, 2):
             return lam[:k], X[:, :k]
         kk = min(2 * kk, n - 2)
     raise ROMError("the clamped disk's harmonic modes are incomplete after repeated Lanczos runs")
-
-
-def _missed(K, M, inv, lam, X, b: int = 2, iterations: int = 4) -> bool:
-    """Whether an eigenvalue below ``lam[-1]`` lies outside span(X): deflated subspace iteration, then Ritz."""
-    MX = M @ X
-    Z = np.random.default_rng(1).standard_normal((K.shape[0], b)).astype(complex)
-    for _ in range(iterations):
-        Z -= X @ (MX.conj().T @ Z)
-        Z = np.asarray(inv.solve(M @ Z)).reshape(Z.shape)
-        Z -= X @ (MX.conj().T @ Z)
-        Z, _ = np.linalg.qr(Z)
-    theta = sla.eigh(_herm(Z.conj().T @ (K @ Z)), _herm(Z.conj().T @ (M @ Z)), eigvals_only=True)
-    return bool(theta[0] < lam[-1] * (1 - 1e-6))

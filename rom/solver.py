@@ -325,15 +325,17 @@ def _anything_missed(K, M, fac, vals: np.ndarray, vecs: np.ndarray, b: int, iter
     values bound the complement's eigenvalues from above, and a missed mode below ``vals[-1]`` is amplified by
     at least (λ_next − σ)/(λ_missed − σ) per step (≈ 40 per step for a missed rigid mode with the default
     shift), so ``iterations · b`` solves replace a second Lanczos run, which needs hundreds in a dense cluster.
+    Complex Hermitian pencils (a cyclic disk's harmonics, :mod:`rom.cyclic_sector`) work the same way.
     """
-    MV = M @ vecs
+    MVh = (M @ vecs).conj().T if np.iscomplexobj(vecs) else (M @ vecs).T
     X = np.random.default_rng(1).standard_normal((K.shape[0], b))
     for _ in range(iterations):
-        X = X - vecs @ (MV.T @ X)
-        X = fac.solve(M @ X)
-        X = X - vecs @ (MV.T @ X)
+        X = X - vecs @ (MVh @ X)
+        X = np.asarray(fac.solve(M @ X)).reshape(X.shape)
+        X = X - vecs @ (MVh @ X)
         X, _ = np.linalg.qr(X)
-    theta = sla_eigh((X.T @ (K @ X)), (X.T @ (M @ X)), eigvals_only=True)
+    Xh = X.conj().T if np.iscomplexobj(X) else X.T
+    theta = sla_eigh((Xh @ (K @ X)), (Xh @ (M @ X)), eigvals_only=True)
     return bool(theta[0] < vals[-1] * (1 - 1e-6))
 
 
