@@ -73,7 +73,7 @@ __all__ = ["RunOptions", "EMAOutcome", "FullModes", "RunResult", "run_campaign",
            "dataset_stage"]
 
 #: Bump when a stage's results change for the same inputs (invalidates the stage caches).
-EMA_CACHE_VERSION = 1
+EMA_CACHE_VERSION = 2
 FULL_CACHE_VERSION = 1
 #: Bump when rom.cyclic's solve changes its results for the same inputs (the full solves' cache key).
 CYCLIC_SOLVE_VERSION = 1

@@ -15,10 +15,10 @@ import numpy as np
 from .errors import EMAError
 from .frf import FRF_FORMS, FRFSet
 from .lscf import lscf
-from .lsfd import dominance, fit_quality, modal_model, refine_poles, synthesize
+from .lsfd import dominance, fit_quality, local_windows, modal_model, refine_poles, synthesize
 from .lsrf import lsrf
 from .mac import distinct_mac, mac, mac_paired
-from .modal import ModalModel, modal_from_pole
+from .modal import ModalModel
 from .poles import PoleSet, band_data, merge_polesets, single_thread_blas
 from .selection import PoleSelection, select_auto, select_near, select_picks
 from .stabilization import StabilityCriteria, StabilizationDiagram, stabilize
@@ -465,10 +465,10 @@ def _refine(frf: FRFSet, poles: np.ndarray, band: tuple[float, float]) -> np.nda
 
     :func:`ema.lsfd.refine_poles` keeps all starting poles when any of them would move by more than 1 %
     (typically a weak pole of the band's edges that the data hardly determine), which would leave every
-    mode at the estimator's accuracy. The fallback refines each mode r over ``f_r +- W_r``,
-    ``W_r = max(10 zeta_r f_r, 20 lines)`` (its resonance down to about -20 dB, where the residual terms
-    absorb what lies outside), with the modes within ``2 W_r`` as poles, and keeps the refined pole of r
-    where that refinement is accepted.
+    mode at the estimator's accuracy. The fallback refines each mode r over its local window
+    (:func:`ema.lsfd.local_windows`: ``f_r +- W_r``, ``W_r = max(10 zeta_r f_r, 20 lines)``, its resonance
+    down to about -20 dB, where the residual terms absorb what lies outside), with the modes within
+    ``2 W_r`` as poles, and keeps the refined pole of r where that refinement is accepted.
 
     Returns
     -------
@@ -477,16 +477,12 @@ def _refine(frf: FRFSet, poles: np.ndarray, band: tuple[float, float]) -> np.nda
     lam = refine_poles(frf, poles, band)
     if poles.size < 2 or not np.array_equal(lam, poles):
         return lam
-    f, z = modal_from_pole(poles)
-    lines = frf.freq_hz[frf.valid_lines() & (frf.freq_hz >= band[0]) & (frf.freq_hz <= band[1])]
-    spacing = np.interp(f, lines, np.gradient(lines)) if lines.size > 1 else np.zeros_like(f)
+    lines = frf.freq_hz[frf.valid_lines()]
     out = poles.copy()
-    for r in range(poles.size):
-        half = max(10.0 * z[r] * f[r], 20.0 * spacing[r])
-        window = (max(band[0], f[r] - half), min(band[1], f[r] + half))
-        near = np.flatnonzero(np.abs(f - f[r]) <= 2.0 * half)
-        if np.count_nonzero((lines >= window[0]) & (lines <= window[1])) < 4 * near.size + 4:
+    for r, item in enumerate(local_windows(poles, lines, band)):
+        if item is None:
             continue  # too few lines for the poles and residual terms of the window
+        window, near = item
         try:
             local = refine_poles(frf, poles[near], window)
         except ValueError:  # a window the LSFD refuses (e.g. non-finite lines): keep the pole

@@ -22,7 +22,8 @@ from .frf import FRF_FORMS, FRFSet
 from .modal import ModalModel, modal_from_pole, pole_from_modal
 from .poles import band_data
 
-__all__ = ["lsfd", "refine_poles", "modal_model", "synthesize", "fit_quality", "dominance"]
+__all__ = ["lsfd", "refine_poles", "local_windows", "local_residues", "modal_model", "synthesize", "fit_quality",
+           "dominance"]
 
 log = logging.getLogger(__name__)
 
@@ -251,29 +252,117 @@ def refine_poles(
     return lam
 
 
+#: Half-width of a mode's local window in half-power half-bandwidths (``zeta f``): the resonance down to
+#: about -20 dB, where the residual terms absorb what lies outside (see :func:`local_windows`).
+LOCAL_HALF_WIDTHS = 10.0
+#: Least half-width of a local window, in lines: a lightly damped mode still gets enough lines around it.
+LOCAL_MIN_LINES = 20
+
+
+def local_windows(
+    poles: np.ndarray, lines: np.ndarray, band: tuple[float, float]
+) -> list[tuple[tuple[float, float], np.ndarray] | None]:
+    """Each mode's local window and the poles that share it (the local fits of refinement and shapes).
+
+    Mode r gets ``f_r ± W_r``, ``W_r = max(LOCAL_HALF_WIDTHS · zeta_r f_r, LOCAL_MIN_LINES lines)``, clipped
+    to ``band``, with the modes within ``2 W_r`` as poles. A window holding fewer than ``4 n + 4`` lines for
+    its n poles (too few for their residues and the residual terms) is ``None``.
+
+    Parameters
+    ----------
+    poles : ndarray of complex, shape (n_modes,)
+    lines : ndarray, shape (n_lines,)
+        The usable spectral lines (Hz).
+    band : (f_lo, f_hi) in Hz
+
+    Returns
+    -------
+    list of ((lo, hi), near) or None, one per mode
+        ``near``: indices of the window's poles (ascending, mode r among them).
+    """
+    f, z = modal_from_pole(np.asarray(poles, dtype=np.complex128).reshape(-1))
+    lines = lines[(lines >= band[0]) & (lines <= band[1])]
+    spacing = np.interp(f, lines, np.gradient(lines)) if lines.size > 1 else np.zeros_like(f)
+    out: list[tuple[tuple[float, float], np.ndarray] | None] = []
+    for r in range(f.size):
+        half = max(LOCAL_HALF_WIDTHS * z[r] * f[r], LOCAL_MIN_LINES * spacing[r])
+        window = (max(band[0], f[r] - half), min(band[1], f[r] + half))
+        near = np.flatnonzero(np.abs(f - f[r]) <= 2.0 * half)
+        enough = np.count_nonzero((lines >= window[0]) & (lines <= window[1])) >= 4 * near.size + 4
+        out.append((window, near) if enough else None)
+    return out
+
+
+def local_residues(
+    frf: FRFSet, poles: np.ndarray, band: tuple[float, float] | None, residues: np.ndarray
+) -> np.ndarray:
+    """Each mode's residues from an LSFD over its own window (:func:`local_windows`), shape (n_modes, n_o, n_i).
+
+    Why: over a wide band every residue also absorbs the misfit of the whole band, e.g. of a cluster whose
+    modes the estimator did not all find. A mode that a response point barely sees (a disk mode at a blade
+    tip) then gets that misfit as its shape there, in the same pattern for every such mode. In a window of
+    a few bandwidths only the nearby poles and two residual terms share the data. Modes whose window has
+    too few lines, or is refused, keep their row of ``residues`` (the whole-band fit).
+    """
+    poles = np.asarray(poles, dtype=np.complex128).reshape(-1)
+    out = np.array(residues, dtype=np.complex128, copy=True)
+    lines = frf.freq_hz[frf.valid_lines() & (frf.freq_hz > 0)]
+    data_band = band_data(frf, band, per="none").band_hz
+    for r, item in enumerate(local_windows(poles, lines, data_band)):
+        if item is None or poles.size < 2:
+            continue
+        window, near = item
+        try:
+            A, _, _ = lsfd(frf, poles[near], window)
+        except ValueError:  # a window the LSFD refuses: keep the whole-band residues
+            continue
+        out[r] = A[int(np.searchsorted(near, r))]
+    return out
+
+
 def _shapes(A: np.ndarray, poles: np.ndarray, frf: FRFSet) -> tuple[np.ndarray, tuple, str]:
-    """Mode shapes from residue matrices (rank-one approximation), mass-scaled when a driving point exists."""
+    """Mode shapes from residue matrices (rank-one approximation), mass-scaled when driving points exist.
+
+    The shape of mode r is the dominant singular vector of its residue matrix ``A_r`` (n_outputs × n_inputs),
+    so every reference contributes. It is then scaled to unit modal mass by a least-squares fit over all
+    driving points d = (o, i) of ``A_r = phi phi^T / (2 j omega_d)``: with ``phi = c u`` and the driven
+    columns ``A_r[:, i] = c^2 u u_o / (2 j omega_d)``,
+
+        c^2 = 2 j omega_d sum_d conj(u_o) (u^H A_r[:, i]) / sum_d |u_o|^2.
+
+    Why not the first driving point's column alone: a mode with a node at that reference (a localised
+    mistuned mode on a blade far from it, or a disk mode whose nodal line runs through it) has a column of
+    noise there, and its shape came out as noise although the other references saw it clearly. With one
+    reference the two are the same (``phi = 2 j omega_d A_r[:, i] / sqrt(2 j omega_d A_r[o, i])``).
+    The sign makes ``phi_o`` at the first driving point the principal square root of ``2 j omega_d A_r[o, i]``.
+    """
     n, n_o, n_i = A.shape
     on_outputs = n_o >= n_i
     dofs = frf.outputs if on_outputs else frf.inputs
-    drive = [(o, i) for o, do in enumerate(frf.outputs) for i, di in enumerate(frf.inputs) if do == di]
+    # (row on the shape side, column on the other side) of each driving point
+    drive = [(o, i) if on_outputs else (i, o)
+             for o, do in enumerate(frf.outputs) for i, di in enumerate(frf.inputs) if do == di]
+    rows = np.array([d[0] for d in drive], dtype=int)
+    cols = np.array([d[1] for d in drive], dtype=int)
     phi = np.zeros((len(dofs), n), dtype=np.complex128)
     scaling = "mass" if drive else "unit"
     for r in range(n):
-        U, _, Vh = np.linalg.svd(A[r])
-        v = U[:, 0] if on_outputs else Vh[0].conj()
+        B = A[r] if on_outputs else A[r].T  # rows: the shape's DOFs
+        u = np.linalg.svd(B)[0][:, 0]
+        v = None
         if drive:
-            # A_r = phi phi^T / (2 j omega_d): phi_j = 2 j omega_d A_jd / phi_d
-            o, i = drive[0]
-            wd = poles[r].imag
-            col = A[r][:, i] if on_outputs else A[r][o, :]
-            phid = np.sqrt(2j * wd * A[r][o, i])
-            v = 2j * wd * col / phid if abs(phid) > 0 else col
-            if not np.all(np.isfinite(v)):
-                v = U[:, 0]
-        else:
-            k = int(np.argmax(np.abs(v)))
-            v = v * np.exp(-1j * np.angle(v[k])) / max(np.linalg.norm(v), 1e-300)
+            ud = u[rows]
+            den = np.sum(np.abs(ud) ** 2)
+            c2 = 2j * poles[r].imag * np.sum(ud.conj() * (u.conj() @ B[:, cols])) / den if den > 0 else 0.0
+            if c2 != 0 and np.isfinite(c2):
+                v = np.sqrt(c2) * u
+                # the branch of the one-reference formula: phi_d = sqrt(2 j omega_d A_dd) at the first drive
+                ref = np.sqrt(2j * poles[r].imag * B[rows[0], cols[0]])
+                if np.real(v[rows[0]] * np.conj(ref)) < 0:
+                    v = -v
+        if v is None:
+            k = int(np.argmax(np.abs(u)))
+            v = u * np.exp(-1j * np.angle(u[k])) / max(np.linalg.norm(u), 1e-300)
         phi[:, r] = v
     return phi, dofs, scaling
 
@@ -285,6 +374,7 @@ def modal_model(
     quality: np.ndarray | None = None,
     method: str = "",
     residuals: bool = True,
+    local_shapes: bool = True,
 ) -> ModalModel:
     """Fit residues (LSFD) for given poles and return the :class:`ModalModel`.
 
@@ -292,6 +382,10 @@ def modal_model(
     otherwise (roving hammer, by reciprocity): the dominant singular vector of each residue matrix.
     With a driving point (an output label equal to an input label) they are scaled to unit modal mass
     (``A_r = phi phi^T / (2 j omega_d)``), otherwise to unit norm with the largest component real.
+
+    The model's residues (and so its synthesis) come from one fit over the whole band. With ``local_shapes``
+    (default) the shapes come from each mode's own local fit (:func:`local_residues`), which keeps the
+    misfit of distant parts of the band out of them.
     """
     poles = np.asarray(poles, dtype=np.complex128).reshape(-1)
     srt = np.argsort(np.abs(poles), kind="stable")
@@ -299,7 +393,7 @@ def modal_model(
     if quality is not None:
         quality = np.asarray(quality, dtype=float).reshape(-1)[srt]
     A, lower, upper = lsfd(frf, poles, band, residuals)
-    phi, dofs, scaling = _shapes(A, poles, frf)
+    phi, dofs, scaling = _shapes(local_residues(frf, poles, band, A) if local_shapes else A, poles, frf)
     f, z = modal_from_pole(poles)
     data_band = band_data(frf, band, per="none").band_hz
     return ModalModel(
