@@ -309,7 +309,7 @@ def local_residues(
     lines = frf.freq_hz[frf.valid_lines() & (frf.freq_hz > 0)]
     data_band = band_data(frf, band, per="none").band_hz
     for r, item in enumerate(local_windows(poles, lines, data_band)):
-        if item is None or poles.size < 2:
+        if item is None:
             continue
         window, near = item
         try:
