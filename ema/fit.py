@@ -477,9 +477,8 @@ def _refine(frf: FRFSet, poles: np.ndarray, band: tuple[float, float]) -> np.nda
     lam = refine_poles(frf, poles, band)
     if poles.size < 2 or not np.array_equal(lam, poles):
         return lam
-    lines = frf.freq_hz[frf.valid_lines()]
     out = poles.copy()
-    for r, item in enumerate(local_windows(poles, lines, band)):
+    for r, item in enumerate(local_windows(poles, frf, band)):
         if item is None:
             continue  # too few lines for the poles and residual terms of the window
         window, near = item

@@ -260,7 +260,7 @@ LOCAL_MIN_LINES = 20
 
 
 def local_windows(
-    poles: np.ndarray, lines: np.ndarray, band: tuple[float, float]
+    poles: np.ndarray, frf: FRFSet, band: tuple[float, float]
 ) -> list[tuple[tuple[float, float], np.ndarray] | None]:
     """Each mode's local window and the poles that share it (the local fits of refinement and shapes).
 
@@ -271,8 +271,8 @@ def local_windows(
     Parameters
     ----------
     poles : ndarray of complex, shape (n_modes,)
-    lines : ndarray, shape (n_lines,)
-        The usable spectral lines (Hz).
+    frf : FRFSet
+        Its finite lines above 0 Hz inside ``band`` are the ones the windows count.
     band : (f_lo, f_hi) in Hz
 
     Returns
@@ -281,7 +281,8 @@ def local_windows(
         ``near``: indices of the window's poles (ascending, mode r among them).
     """
     f, z = modal_from_pole(np.asarray(poles, dtype=np.complex128).reshape(-1))
-    lines = lines[(lines >= band[0]) & (lines <= band[1])]
+    freq = frf.freq_hz
+    lines = freq[frf.valid_lines() & (freq > 0) & (freq >= band[0]) & (freq <= band[1])]
     spacing = np.interp(f, lines, np.gradient(lines)) if lines.size > 1 else np.zeros_like(f)
     out: list[tuple[tuple[float, float], np.ndarray] | None] = []
     for r in range(f.size):
@@ -293,22 +294,19 @@ def local_windows(
     return out
 
 
-def local_residues(
-    frf: FRFSet, poles: np.ndarray, band: tuple[float, float] | None, residues: np.ndarray
-) -> np.ndarray:
+def local_residues(frf: FRFSet, poles: np.ndarray, band: tuple[float, float], residues: np.ndarray) -> np.ndarray:
     """Each mode's residues from an LSFD over its own window (:func:`local_windows`), shape (n_modes, n_o, n_i).
 
     Why: over a wide band every residue also absorbs the misfit of the whole band, e.g. of a cluster whose
     modes the estimator did not all find. A mode that a response point barely sees (a disk mode at a blade
     tip) then gets that misfit as its shape there, in the same pattern for every such mode. In a window of
     a few bandwidths only the nearby poles and two residual terms share the data. Modes whose window has
-    too few lines, or is refused, keep their row of ``residues`` (the whole-band fit).
+    too few lines, or is refused, keep their row of ``residues`` (the whole-band fit). ``band`` (Hz) is the
+    resolved data band of that fit.
     """
     poles = np.asarray(poles, dtype=np.complex128).reshape(-1)
     out = np.array(residues, dtype=np.complex128, copy=True)
-    lines = frf.freq_hz[frf.valid_lines() & (frf.freq_hz > 0)]
-    data_band = band_data(frf, band, per="none").band_hz
-    for r, item in enumerate(local_windows(poles, lines, data_band)):
+    for r, item in enumerate(local_windows(poles, frf, band)):
         if item is None:
             continue
         window, near = item
@@ -393,9 +391,9 @@ def modal_model(
     if quality is not None:
         quality = np.asarray(quality, dtype=float).reshape(-1)[srt]
     A, lower, upper = lsfd(frf, poles, band, residuals)
-    phi, dofs, scaling = _shapes(local_residues(frf, poles, band, A) if local_shapes else A, poles, frf)
-    f, z = modal_from_pole(poles)
     data_band = band_data(frf, band, per="none").band_hz
+    phi, dofs, scaling = _shapes(local_residues(frf, poles, data_band, A) if local_shapes else A, poles, frf)
+    f, z = modal_from_pole(poles)
     return ModalModel(
         frequency_hz=f, damping_ratio=z, shapes=phi, dofs=dofs, quality=quality, residues=A,
         lower_residual=lower, upper_residual=upper, outputs=frf.outputs, inputs=frf.inputs, form=frf.form,
