@@ -26,6 +26,7 @@ import argparse
 import json
 import sys
 import time
+from types import SimpleNamespace
 
 import _paths  # noqa: F401  (must precede the package imports)
 import numpy as np
@@ -47,15 +48,8 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
 
     from bladetwin.campaign import read_campaign
-    from bladetwin.pipeline import (
-        blade_tests,
-        family_samplers,
-        film_patterns,
-        mean_known_pattern,
-        read_films,
-        reduced_models,
-        synthesize,
-    )
+    from bladetwin.run import run_nodes
+    from bladetwin.stages.patterns import family_samplers, film_patterns, mean_known_pattern, read_films, synthesize
     from identify.dataset import build_dataset, grid_from_deltas
     from identify.interpolated import match_interpolated
     from identify.knn import TwoStepKNN, query_matrix
@@ -81,9 +75,11 @@ def main(argv: list[str] | None = None) -> int:
     known = film_patterns(films)
     sp = synthesize(films, n_patterns=args.n, scale=args.scale, seed=args.seed)
     say("EMA of the blades (measured deltas)")
-    blades = blade_tests(campaign)
+    # the blade table and the reduced models of `bladetwin run`, from the same store
+    stored, _ = run_nodes(campaign, ["blade_table", "disk_cb", "blade_rubin"])
+    blades = stored["blade_table"]
     say("reduced models")
-    models = reduced_models(campaign)
+    models = SimpleNamespace(disk=stored["disk_cb"], blade=stored["blade_rubin"])
     delta_all = rom_deltas(blades.frequencies_hz, blades.deltas_pct, models.blade.frequencies_hz)
     grid = grid_from_deltas(delta_all[:, :3], step=args.step / 100)
     say(f"dataset: {len(grid)}^3 δ rows × {len(sp.L) * len(sp.R)} pairs")

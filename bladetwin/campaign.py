@@ -220,7 +220,7 @@ def _check_imported_model(model: dict, root: Path, n_blades: int, grid: tuple[in
     """What the manifest can tell of an imported model without reading its matrices: slots, grid, files.
 
     The full check (matrix sizes, node sets, grid conformity) needs the import itself, which
-    :func:`bladetwin.pipeline.load_model` does; this one makes a wrong count or a missing file fail in seconds.
+    :func:`bladetwin.model.load_model` does; this one makes a wrong count or a missing file fail in seconds.
     """
     table, base, where = imported_model_table(model, root, where)
     placement = table.get("placement")

@@ -26,23 +26,26 @@ def register(sub) -> None:
                        description="Identify the contact pattern of every blade-root joint of a campaign folder "
                                    "(UFF tests + a few film scans), build the mistuned ROM, validate it (paper "
                                    "Table 8) and write an HTML report. Default: the bundled academic campaign.")
-    p.add_argument("campaign", nargs="?", default=DEFAULT_CAMPAIGN,
-                   help="campaign folder with campaign.toml (default: %(default)s)")
-    p.add_argument("--out", default=None, help="output folder (default: out/<campaign name>)")
+    p.add_argument("campaign", nargs="*", default=[DEFAULT_CAMPAIGN],
+                   help="campaign folders with campaign.toml; several campaigns of one disk (re-assemblies) share "
+                        "its reduced models and get an index page comparing them (default: %(default)s)")
+    p.add_argument("--out", default=None, help="output folder (default: out/<campaign name>); with several "
+                   "campaigns, one folder per campaign under it and index.html (default: out)")
     p.add_argument("--cache-dir", default=None,
-                   help="stage caches and reduced models (default: $BLADETWIN_CACHE or .cache/bladetwin)")
+                   help="the store of stage results and reduced models (default: $BLADETWIN_CACHE or .cache/bladetwin)")
     p.add_argument("--n", type=int, default=10, help="synthetic patterns per flank (default: %(default)s)")
     p.add_argument("--scale", type=float, default=1.0, help="Eq. 31's Scale of the PCA sampler (default: %(default)s)")
     p.add_argument("--seed", type=int, default=0, help="seed of the PCA sampler (default: %(default)s)")
     p.add_argument("--step", type=float, default=0.5, help="δ grid step in %% (default: %(default)s)")
     p.add_argument("--features", type=int, default=3, help="feature modes of the k-NN (default: %(default)s)")
     p.add_argument("--no-bias", action="store_true", help="don't remove the ROM's bias estimated on the filmed joints")
-    p.add_argument("--workers", type=int, default=2, help="processes for the EMA and full-assembly solves "
-                   "(default: %(default)s)")
+    p.add_argument("--workers", type=int, default=2, help="worker processes of the stage runner, each "
+                   "single-threaded (default: %(default)s)")
     p.add_argument("--dask-workers", type=int, default=None, metavar="N",
                    help="build the dataset on a local Dask cluster of N worker processes (default: in process)")
     p.add_argument("--scheduler", default=None, metavar="ADDRESS",
-                   help="build the dataset on an existing Dask cluster, e.g. tcp://host:8786")
+                   help="send each campaign's graph to an existing Dask cluster, e.g. tcp://host:8786 (the store "
+                        "must be a folder the cluster's workers share)")
     p.add_argument("--refine", type=int, default=40, metavar="N",  # RunOptions.refine (a test checks they agree)
                    help="refine each unfilmed joint's k-NN pattern by a compass search of at most N disk-one-blade "
                         "solves (beyond the paper; about N × 0.15 s per joint and input; default: %(default)s; "
@@ -62,47 +65,87 @@ def _check_args(args) -> None:
                 name, "a positive value"))
 
 
-def _cmd_run(args) -> int:
-    from .campaign import read_campaign
-    from .report import render_report
-    from .run import RunOptions, run_campaign
-    from .run_outputs import write_outputs
-
-    _check_args(args)
-    t0 = time.perf_counter()
-
+def _say(args, t0: float):
     def say(msg: str) -> None:
         if not args.quiet:
             print(f"[{time.perf_counter() - t0:6.1f} s] {msg}", file=sys.stderr, flush=True)
+    return say
 
+
+def _options(args):
+    from .stages import RunOptions
+
+    return RunOptions(cache_dir=Path(args.cache_dir) if args.cache_dir else None, n_patterns=args.n,
+                      scale=args.scale, seed=args.seed, step_pct=args.step, n_features=args.features,
+                      bias=not args.no_bias, workers=args.workers, dask_workers=args.dask_workers, refine=args.refine)
+
+
+def _outs(args, campaigns) -> list[Path]:
+    if len(campaigns) == 1:
+        return [Path(args.out) if args.out else Path("out") / campaigns[0].name]
+    names = [c.name for c in campaigns]
+    return [Path(args.out or "out") / (n if names.count(n) == 1 else f"{n}-{k + 1}") for k, n in enumerate(names)]
+
+
+def _cmd_run(args) -> int:
+    from .campaign import read_campaign
+    from .outputs import write_outputs
+    from .report import render_report
+
+    _check_args(args)
+    t0 = time.perf_counter()
+    say = _say(args, t0)
     if not getattr(args, "verbose", False):
         # ema logs each pole refinement it declines; over 38 files that is noise next to the fit quality the
         # report gives per test (`bladetwin -v run` shows them)
         import logging
 
         logging.getLogger("ema").setLevel(logging.ERROR)
-    campaign = read_campaign(args.campaign)
-    out = Path(args.out) if args.out else Path("out") / campaign.name
-    opts = RunOptions(cache_dir=Path(args.cache_dir) if args.cache_dir else None, n_patterns=args.n, scale=args.scale,
-                      seed=args.seed, step_pct=args.step, n_features=args.features, bias=not args.no_bias,
-                      workers=args.workers, dask_workers=args.dask_workers, scheduler=args.scheduler,
-                      refine=args.refine)
-    res = run_campaign(campaign, opts, say)
-    t_rep = time.perf_counter()
-    say(f"writing tables, figures and the report to {out}")
+    campaigns = [read_campaign(c) for c in args.campaign]
+    outs = _outs(args, campaigns)
+    results = _compute(campaigns, _options(args), args.scheduler, say)
     command = "bladetwin run " + " ".join(shlex.quote(a) for a in sys.argv[2:]) if sys.argv[1:2] == ["run"] \
-        else "bladetwin run " + str(args.campaign)
-    res.timings_s["report"] = 0.0
-    write_outputs(res, out, command=command)
-    res.timings_s["report"] = time.perf_counter() - t_rep
-    res.timings_s["total"] = time.perf_counter() - t0
-    summary = _final_timings(out, res.timings_s)
-    report = render_report(out)
+        else "bladetwin run " + " ".join(args.campaign)
+    summaries, reports = [], []
+    for res, out in zip(results, outs, strict=True):
+        t_rep = time.perf_counter()
+        say(f"writing tables, figures and the report to {out}")
+        res.timings_s["report"] = 0.0
+        write_outputs(res, out, command=command)
+        res.timings_s["report"] = time.perf_counter() - t_rep
+        res.timings_s["total"] = time.perf_counter() - t0
+        summaries.append(_final_timings(out, res.timings_s))
+        reports.append(render_report(out))
+    if len(campaigns) > 1:
+        from .index_page import render_index
+
+        reports.append(render_index(Path(args.out or "out"), outs))
     if args.json:
-        print_json(summary)
+        print_json(summaries[0] if len(summaries) == 1 else summaries)
         return 0
-    _print_summary(summary, report)
+    for s, report in zip(summaries, reports, strict=False):
+        _print_summary(s, report)
+    if len(campaigns) > 1:
+        print(f"index: {reports[-1]}")
     return 0
+
+
+def _compute(campaigns, opts, scheduler: str | None, say) -> list:
+    """Every campaign's results: here on the runner, or each campaign's graph as a task of a Dask cluster."""
+    from .run import run_campaigns
+
+    if scheduler is None:
+        return run_campaigns(campaigns, opts, say)
+    from dataclasses import replace
+
+    from distributed import Client
+
+    say(f"sending {len(campaigns)} campaign graph(s) to the Dask scheduler at {scheduler}")
+    # one process per task on the cluster: its own runner without a pool (Dask's workers are daemons)
+    solo = replace(opts, workers=1)
+    with Client(scheduler) as client:
+        futures = [client.submit(run_campaigns, [c], solo, pure=False) for c in campaigns]
+        return [f.result()[0] for f in futures]
 
 
 def _final_timings(out: Path, timings: dict) -> dict:

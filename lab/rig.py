@@ -25,7 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ema.frf import FRFSet
-from ema.modal import ModalModel
+from identify.numbering import dof_label, rom_modal_model
 
 from .truth import TruthModes
 
@@ -34,30 +34,6 @@ __all__ = ["RigSetup", "dof_label", "rom_modal_model", "synthesize_mobility", "m
 #: A mode belongs to a test when its resonance peak stands at least this far above the noise floor in some
 #: FRF (about 30 dB): weaker modes are lost in the noise, as in a real test.
 MIN_SNR = 30.0
-
-#: Node number offset per blade slot in DOF labels (blade s, point p → node BLADE_NODE_STRIDE · s + p).
-BLADE_NODE_STRIDE = 1000
-
-
-def dof_label(meas_label: tuple) -> tuple[int, int]:
-    """UFF ``(node, direction)`` of a truth measurement label ``("disk", sector, 1, d)`` / ``("blade", s, p, d)``."""
-    kind, index, point, direction = meas_label
-    if kind == "disk":
-        return int(index), int(direction)
-    if kind == "blade":
-        return BLADE_NODE_STRIDE * int(index) + int(point), int(direction)
-    raise ValueError(f"unknown measurement label kind {kind!r}")
-
-
-def rom_modal_model(modes) -> ModalModel:
-    """ROM modes as an undamped ``ema.ModalModel`` on the rig's UFF DOF labels (real shapes as complex).
-
-    ``modes`` is anything with ``frequencies_hz`` (n,), ``meas_shapes`` (n_meas, n) and ``meas_labels``
-    (``rom.AssemblyModes``, ``bladetwin.run.FullModes``): the form a ROM takes to be compared with an EMA.
-    """
-    f = np.asarray(modes.frequencies_hz, np.float64)
-    dofs = tuple(dof_label(tuple(lab)) for lab in modes.meas_labels)
-    return ModalModel(f, np.zeros(f.size), np.asarray(modes.meas_shapes).astype(complex), dofs)
 
 
 @dataclass(frozen=True)

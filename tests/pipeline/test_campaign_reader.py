@@ -1,4 +1,4 @@
-"""The campaign manifest reader (bladetwin.campaign) and the pipeline's small numerics (bladetwin.pipeline)."""
+"""The campaign manifest reader (bladetwin.campaign) and the pipeline's small numerics (bladetwin.stages)."""
 
 from __future__ import annotations
 
@@ -7,7 +7,8 @@ import pytest
 
 from bladetwin.campaign import CampaignError, read_campaign
 from bladetwin.cli import main
-from bladetwin.pipeline import known_bias, match_to_reference, mean_known_pattern
+from bladetwin.stages.bias import known_bias, match_to_reference
+from bladetwin.stages.patterns import mean_known_pattern
 from rom.contact import ContactPattern
 
 MANIFEST = """

@@ -19,8 +19,8 @@ import tomli_w
 import ema
 from bladetwin.campaign import read_campaign
 from bladetwin.cli import main
-from bladetwin.pipeline import film_patterns, read_films
-from bladetwin.run import RunOptions
+from bladetwin.stages import RunOptions
+from bladetwin.stages.patterns import film_patterns, read_films
 from identify.validation import contact_area_fraction
 from rom.pattern_io import load_patterns
 
@@ -140,8 +140,9 @@ def test_warm_rerun_recomputes_nothing_and_gives_the_same_answer(campaign, cold,
     capsys.readouterr()
     assert main(["run", str(camp), *KNN_ONLY, "--out", str(root / "warm"), "--cache-dir", str(root / "cache")]) == 0
     err = capsys.readouterr().err
-    assert "EMA of" not in err and "dataset:" not in err and "full-assembly ROM (" not in err, err
-    assert "disk built" not in err, err
+    # every stage node is read from the store: no EMA, no model build, no dataset, no solve
+    assert "EMA " not in err and "  dataset" not in err and "solved" not in err, err
+    assert "disk built" not in err and "0 read from the store" not in err, err
     w = json.loads((root / "warm" / "summary.json").read_text())
     assert w["joints"] == s["joints"] and w["cases"] == s["cases"]
 
@@ -152,16 +153,18 @@ def test_a_disk_the_cyclic_reduction_refused_falls_back_on_the_sparse_hybrid(cam
     process, after the run has let go of the models it handed to the disk builds."""
     root, camp = campaign
     out, s = cold
+    from bladetwin.stages import codec
+    from bladetwin.stages.models import CyclicBuild
+
     cache = tmp_path / "cache"
-    shutil.copytree(root / "cache", cache, ignore=shutil.ignore_patterns("full"))
-    (cyclic,) = cache.glob("disk-cyclic-*.npz")  # the cold run built it
-    cyclic.with_suffix(".refused").write_text("the disk is not cyclic (marked by the test)\n")
-    cyclic.unlink()
+    shutil.copytree(root / "cache", cache, ignore=shutil.ignore_patterns("solve_assembly"))
+    (cyclic,) = (cache / "nodes" / "reduce_disk_all_slots").glob("*.npz")  # the cold run built it
+    codec.save(cyclic, CyclicBuild(None, "the disk is not cyclic (marked by the test)"))
     capsys.readouterr()
     assert main(["run", str(camp), *KNN_ONLY, "--workers", "1", "--out", str(tmp_path / "out"),
                  "--cache-dir", str(cache)]) == 0
     err = capsys.readouterr().err
-    assert "full-assembly ROM (hybrid): solving 'baseline'" in err and "disk built" not in err, err
+    assert "full-assembly ROM 'baseline' solved" in err and "disk built" not in err, err
     h = json.loads((tmp_path / "out" / "summary.json").read_text())
     assert any("sparse hybrid" in n and "marked by the test" in n for n in h["notes"]), h["notes"]
     assert any("cyclic all-slot" in n for n in s["notes"])
@@ -177,7 +180,7 @@ def test_refinement_improves_the_feature_match_and_is_cached(campaign, cold, cap
     capsys.readouterr()
     assert main([*args, "--out", str(root / "refined")]) == 0
     err = capsys.readouterr().err
-    assert "refining" in err and "EMA of" not in err and "dataset:" not in err, err
+    assert "refined (experimental input)" in err and "EMA " not in err and "  dataset" not in err, err
     r = json.loads((root / "refined" / "summary.json").read_text())
     # the CLI's default is RunOptions' (the Python API and the command line refine alike)
     assert r["settings"]["refine_max_solves"] == RunOptions().refine > 0
@@ -191,7 +194,7 @@ def test_refinement_improves_the_feature_match_and_is_cached(campaign, cold, cap
     for j in r["joints"]:
         assert j["source"] in ("film", "k-NN + refinement")
     assert main([*args, "--out", str(root / "refined2")]) == 0  # warm: every search comes from the cache
-    assert "refining" not in capsys.readouterr().err
+    assert "refined (" not in capsys.readouterr().err
     assert json.loads((root / "refined2" / "summary.json").read_text())["joints"] == r["joints"]
 
 
@@ -283,4 +286,4 @@ def test_bad_campaigns_fail_fast_with_one_line(campaign, tmp_path, capsys, edit,
     err = capsys.readouterr().err
     lines = [ln for ln in err.splitlines() if ln.startswith("bladetwin: error")]
     assert len(lines) == 1 and all(n in lines[0] for n in needles), err
-    assert "EMA of" not in err and not (tmp_path / "cache" / "ema").exists()  # refused before any long stage
+    assert "EMA " not in err and not (tmp_path / "cache" / "nodes").exists()  # refused before any long stage

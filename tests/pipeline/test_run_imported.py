@@ -19,7 +19,7 @@ import tomli_w
 
 from bladetwin.campaign import CampaignError, read_campaign
 from bladetwin.cli import main
-from bladetwin.pipeline import load_model, model_params
+from bladetwin.model import load_model, model_params
 from rom.academic import build_bladed_disk, flank_coordinates
 from rom.importers.export import export_bladed_disk
 from rom.importers.model import ImportedBladedDisk
@@ -70,7 +70,7 @@ def runs(campaigns):
         if name == "imported":
             # Same UFF files byte for byte, so the EMA's cache (keyed by them) is shared; the reduced models
             # and everything after are not: the imported run reduces the imported matrices.
-            shutil.copytree(root / "cache_native" / "ema", root / "cache_imported" / "ema")
+            shutil.copytree(root / "cache_native" / "nodes" / "fit_test", root / "cache_imported" / "nodes" / "fit_test")
         assert main(["run", str(camp), "--refine", "0", "--out", str(o), "--cache-dir", str(root / f"cache_{name}"),
                      "--quiet"]) == 0
         out[name] = o, json.loads((o / "summary.json").read_text())
@@ -108,7 +108,7 @@ def test_model_file_form_and_rom_build_on_the_imported_model(campaigns, runs, tm
     assert isinstance(bd, ImportedBladedDisk) and bd.disk.n_dof == load_model(read_campaign(imported)).disk.n_dof
 
     # `rom build --model`: the exported model.toml and the native campaign give the same reduced models
-    # (each warm from its own run's cache)
+    # (`rom build` keeps its own cache of reduced models, rom.cache)
     capsys.readouterr()
     outs = []
     for model, cache in ((imported / "fe" / "model.toml", "cache_imported"), (native, "cache_native")):

@@ -1,0 +1,390 @@
+"""The writer of ``bladetwin run``: tables (CSV), figures (PNG), patterns, the ROM's modes (UFF 55), summary.json.
+
+The one place a run's results become files (no stage draws or writes). Everything is written atomically into the
+output folder; :func:`bladetwin.report.render_report` then turns
+``summary.json`` and the files it names into ``report.html``.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+from datetime import UTC, datetime
+from pathlib import Path
+
+import matplotlib.pyplot as plt
+import numpy as np
+
+import ema
+from identify.numbering import rom_modal_model
+from identify.plots import (
+    plot_area_fractions,
+    plot_centroids,
+    plot_frequency_maps,
+    plot_grid_error,
+    plot_mode_comparison,
+    plot_sensitivity,
+    plot_synthetic_patterns,
+)
+from identify.validation import contact_area_fraction, geometric_validation
+from rom.pattern_io import save_patterns
+
+from .run_figures import plot_bias, plot_blade_deltas, plot_d1b_features, plot_joint_patterns
+from .stages import PAPER_TABLE8, RunResult
+from .stages.bias import MATCH_WINDOW
+from .util import atomic_savefig, atomic_write_text
+
+__all__ = ["write_outputs", "write_sensitivity", "summary_of"]
+
+CASE_TITLES = {"A": "Case A: ROM with patterns identified from the numerical input vs ROM with the reference patterns",
+               "B": "Case B: ROM with the identified patterns (experimental input, bias removed) vs measured",
+               "B_no_bias": "Case B without the bias correction vs measured",
+               "C": "Case C: ROM with the reference patterns vs measured",
+               "baseline_A": "Baseline vs the ROM with the reference patterns",
+               "baseline_B": "Baseline vs measured"}
+
+
+def _csv(path: Path, header: list[str], rows: list[list]) -> str:
+    buf = io.StringIO()
+    w = csv.writer(buf, lineterminator="\n")
+    w.writerow(header)
+    for r in rows:
+        w.writerow([f"{v:.6g}" if isinstance(v, float | np.floating) else v for v in r])
+    atomic_write_text(path, buf.getvalue())
+    return path.name
+
+
+def _fig(fig, path: Path) -> str:
+    atomic_savefig(fig, path, dpi=110)
+    plt.close(fig)
+    return path.name
+
+
+def _label(i: int) -> str:
+    return f"SP-{i + 1}"
+
+
+def _stabilization(name: str, test, fit, out: Path) -> dict:
+    """One test's stabilization diagram, drawn from its stored diagram over its FRFs."""
+    from ema.plots import plot_stabilization
+
+    fig = plot_stabilization(fit.diagram, ema.read_uff(test.file), selected_hz=fit.model.frequency_hz)
+    fig.axes[0].set_title(f"{test.file.name}: {fit.method.upper()}, "
+                          f"{'picked by hand' if fit.picked else 'automatic selection'}, {fit.model.n_modes} modes")
+    return {"file": _fig(fig, out / f"stabilization_{name}.png"),
+            "caption": f"Stabilization diagram of {test.file.name} ({test.type} test), "
+                       f"{'hand-picked poles' if fit.picked else 'automatic selection'}."}
+
+
+def _ema_tables(res: RunResult, out: Path, notes: list[str]) -> list[dict]:
+    bf, bd_ = res.blades.frequencies_hz, res.blades.deltas_pct
+    t_bf = _csv(out / "blade_frequencies.csv", ["blade"] + [f"mode {m + 1} (Hz)" for m in range(bf.shape[1])],
+                [[b + 1, *map(float, bf[b])] for b in range(bf.shape[0])])
+    t_bd = _csv(out / "blade_deltas.csv", ["blade"] + [f"δ mode {m + 1} (%)" for m in range(bd_.shape[1])],
+                [[b + 1, *map(float, bd_[b])] for b in range(bd_.shape[0])])
+    tables = [{"file": t_bd, "caption": "Blade mistuning δ (%), Eq. 37 (paper Table 2).", "heatmap": True},
+              {"file": t_bf, "caption": "Blade natural frequencies (Hz), modes tracked by MAC."}]
+    disk = [fit for t, fit in res.ema.values() if t.type == "disk"]
+    if disk:
+        try:
+            dm = ema.disk_modes(disk[0].model)
+        except ValueError as exc:  # e.g. disk points that are not one per sector: the run's answer stands
+            notes.append(f"Disk modes: nodal diameters not assigned ({exc}).")
+        else:
+            ema.write_table(dm, out / "disk_modes.csv")
+            tables.append({"file": "disk_modes.csv", "caption": "Disk modes with their nodal diameters."})
+    # Table 3: each joint's EMA frequencies matched one-to-one to the modes the dataset tracks (its blade
+    # points are numbered per joint, so the tests share only the disk points and cannot be paired by MAC).
+    mh = res.features.measured_hz
+    _csv(out / "d1b_frequencies.csv", ["joint"] + [f"mode {m + 1} (Hz)" for m in range(mh.shape[1])],
+         [[int(j), *("" if not np.isfinite(v) else float(v) for v in mh[k])] for k, j in enumerate(res.joints)])
+    tables.append({"file": "d1b_frequencies.csv", "caption": "Disk–one-blade natural frequencies (Hz) per joint "
+                   "(paper Table 3): each joint's EMA modes matched to the tracked ROM modes within "
+                   f"{100 * MATCH_WINDOW:.0f} % (empty: not found)."})
+    asm = [fit for t, fit in res.ema.values() if t.type == "assembly"]
+    if asm:
+        m = asm[0].model
+        _csv(out / "assembly_modes.csv", ["mode", "frequency (Hz)", "damping (%)"],
+             [[k + 1, float(m.frequency_hz[k]), float(100 * m.damping_ratio[k])] for k in range(m.n_modes)])
+        tables.append({"file": "assembly_modes.csv", "caption": "Full-assembly modes found by the EMA."})
+    return tables
+
+
+def _ema_section(res: RunResult, out: Path, notes: list[str]) -> dict:
+    rows, figs, drawn = [], [], set()
+    for name, (t, fit) in res.ema.items():
+        q = fit.fit_quality
+        rows.append([name, t.type, t.file.name, fit.method.upper(),
+                     "picks file " + t.picks.name if fit.picked else "automatic", fit.model.n_modes,
+                     float(np.min(q)) if q.size else float("nan"), float(np.mean(q)) if q.size else float("nan")])
+        if t.type not in drawn or fit.picked:  # one diagram per test type, and every hand-picked one
+            drawn.add(t.type)
+            figs.append(_stabilization(name, t, fit, out))
+    t_quality = _csv(out / "ema_quality.csv", ["test", "type", "file", "method", "selection", "modes",
+                                               "fit quality min", "fit quality mean"], rows)
+    figs.append({"file": _fig(plot_blade_deltas(res.blades.deltas_pct), out / "blade_deltas.png"),
+                 "caption": "Blade mistuning δ of every blade and tracked mode (Eq. 37, paper Table 2)."})
+    tables = [{"file": t_quality, "caption": "EMA of every test: pole estimator, selection, modes found and fit "
+               "quality (1 − relative squared error of the synthesis)."}] + _ema_tables(res, out, notes)
+    return {"id": "ema", "title": "Experimental modal analysis",
+            "text": [f"{len(res.ema)} UFF files, fitted with LSRF and automatic pole selection unless a picks file "
+                     "is named for the test in campaign.toml. One stabilization diagram per test type is shown."],
+            "figures": figs, "tables": tables}
+
+
+def write_sensitivity(sens, out: Path, *, plot: bool = True) -> list[str]:
+    """The sensitivity table and its figures (paper Figs. 15–16) in ``out``; returns the files' names."""
+    rows = [[m + 1, float(sens.mean_hz[m]), float(sens.std_hz[m]), float(sens.std_rel_pct[m]),
+             int(m in sens.feature_modes)] for m in range(sens.n_modes)]
+    files = [_csv(out / "sensitivity.csv", ["mode", "mean_hz", "std_hz", "std_pct", "feature"], rows)]
+    if plot:
+        files += [_fig(plot_sensitivity(sens), out / "sensitivity.png"),
+                  _fig(plot_frequency_maps(sens), out / "frequency_maps.png")]
+    return files
+
+
+def _patterns_section(res: RunResult, out: Path) -> dict:
+    films = res.films
+    table, sens_png, maps_png = write_sensitivity(res.sensitivity, out)
+    figs = [{"file": _fig(plot_synthetic_patterns(res.synthetic, [a for a, _ in films.values()],
+                                                  [b for _, b in films.values()],
+                                                  known_labels=[f"joint {j}" for j in films]), out / "patterns.png"),
+             "caption": "Film maps of the known joints and the synthetic patterns SP-1… drawn by the PCA sampler "
+                        "(paper Fig. 14)."},
+            {"file": sens_png,
+             "caption": "Spread of the disk–one-blade frequencies over all pattern pairs; feature modes marked "
+                        "(paper Fig. 15)."},
+            {"file": maps_png,
+             "caption": "Frequency maps of the feature modes over the pattern pairs (paper Fig. 16)."}]
+    tables = [{"file": table,
+               "caption": "Sensitivity per tracked mode (std over the pattern pairs)."}]
+    return {"id": "patterns", "title": "Film maps, synthetic patterns and sensitivity",
+            "text": [f"Known joints {list(res.campaign.known_joints)}; {len(res.synthetic.L)} synthetic patterns per "
+                     f"flank (Scale {res.options.scale:g}, seed {res.options.seed}). Feature modes "
+                     f"{[m + 1 for m in res.dataset.feature_modes]}; dataset of {res.dataset.n_samples} samples."],
+            "figures": figs, "tables": tables}
+
+
+def _joint_row(res: RunResult, j: int) -> tuple[dict, list]:
+    """summary.json's entry and the CSV row of joint ``j``."""
+    p, known, ref = res.final_patterns[j - 1], res.known, res.reference
+    aL, aR = (float(a) for a in contact_area_fraction(np.stack([p.L, p.R])))
+    lab = res.predictions.labels["experimental"].get(j)
+    src = "film" if j in known else (("k-NN + refinement" if res.options.refine else "k-NN") if lab else "baseline")
+    tag = " (refined)" if res.options.refine else ""  # a refined pattern starts from this pair and leaves it
+    pl = "film" if j in known else (_label(lab[0]) + tag if lab else "mean known")
+    pr = "film" if j in known else (_label(lab[1]) + tag if lab else "mean known")
+    rL = rR = None
+    if ref is not None:
+        rL, rR = (float(a) for a in contact_area_fraction(np.stack([ref[j - 1].L, ref[j - 1].R])))
+    # Largest |relative distance| of a feature outside what the synthetic pairs reach (0: inside), %.
+    beyond = float(100 * np.max(np.abs(lab[3]))) if lab and j not in known else None
+    flag = bool(lab[4]) if lab and j not in known else None
+    entry = {"joint": j, "source": src, "pattern_L": pl, "pattern_R": pr, "area_fraction_L_pct": aL,
+             "area_fraction_R_pct": aR, "reference_area_L_pct": rL, "reference_area_R_pct": rR,
+             "beyond_family_pct": beyond, "outside_family": flag}
+    row = [j, src, pl, pr, float(lab[2]) if lab else "", "" if beyond is None else beyond,
+           "" if flag is None else ("yes" if flag else "no"), aL, aR, "" if rL is None else rL,
+           "" if rR is None else rR]
+    return entry, row
+
+
+def _geometric(res: RunResult, out: Path, figs: list, tables: list, text: list) -> dict | None:
+    ref, known, c = res.reference, res.known, res.campaign
+    unknown = [j for j in range(1, c.n_blades + 1) if j not in known] if ref is not None else []
+    if not unknown:
+        return None
+    geo = geometric_validation([res.final_patterns[j - 1] for j in unknown], [ref[j - 1] for j in unknown], res.bd)
+    geo_b = geometric_validation([res.baseline_pattern for _ in unknown], [ref[j - 1] for j in unknown], res.bd)
+    summary = {"joints": unknown,
+               "area_error_pp": {"identified": float(np.mean(np.abs(geo.area_error_pct))),
+                                 "baseline": float(np.mean(np.abs(geo_b.area_error_pct)))},
+               "centroid_distance_mm": {"identified": float(1e3 * np.nanmean(geo.centroid_distance)),
+                                        "baseline": float(1e3 * np.nanmean(geo_b.centroid_distance))}}
+    jl = [f"joint {j}" for j in unknown]
+    figs.append({"file": _fig(plot_area_fractions(geo, joint_labels=jl), out / "area_fractions.png"),
+                 "caption": "Contact area fraction of the identified and reference patterns at the unfilmed joints "
+                            "(Eq. 41, paper Figs. 21, 25)."})
+    figs.append({"file": _fig(plot_centroids(geo, [ref[j - 1] for j in unknown], res.bd,
+                                             [res.final_patterns[j - 1] for j in unknown], joint_labels=jl),
+                              out / "centroids.png"),
+                 "caption": "Contact centroids, identified (blue) and reference (red), best and worst joint "
+                            "(Eq. 42, paper Figs. 22, 26)."})
+    _csv(out / "geometric_validation.csv", ["joint", "area error L (pp)", "area error R (pp)",
+                                             "centroid distance L (mm)", "centroid distance R (mm)"],
+         [[j, *map(float, geo.area_error_pct[k]), *map(float, 1e3 * geo.centroid_distance[k])]
+          for k, j in enumerate(unknown)])
+    tables.append({"file": "geometric_validation.csv",
+                   "caption": "Geometric validation at the unfilmed joints (identified vs reference)."})
+    a, d = summary["area_error_pp"], summary["centroid_distance_mm"]
+    text.append(f"Geometric validation on the unfilmed joints: mean |area error| {a['identified']:.1f} pp "
+                f"(baseline {a['baseline']:.1f} pp), mean centroid distance {d['identified']:.2f} mm (baseline "
+                f"{d['baseline']:.2f} mm).")
+    return summary
+
+
+def _identification_section(res: RunResult, out: Path) -> tuple[dict, list, dict | None]:
+    c, feat = res.campaign, list(res.dataset.feature_modes)
+    bias_pct, spread_pct = 100 * res.features.bias, 100 * res.features.spread
+    t_bias = _csv(out / "bias.csv", ["mode", "bias (%)", "spread (%)", "feature"],
+                  [[m + 1, float(bias_pct[m]), float(spread_pct[m]), int(m in feat)] for m in range(len(bias_pct))])
+    eps = res.step1.epsilon_pct
+    t_eps = _csv(out / "step1_epsilon.csv", ["joint"] + [f"ε δ{m + 1} (%)" for m in range(eps.shape[1])],
+                 [[int(j), *map(float, eps[k])] for k, j in enumerate(res.joints)])
+    joints, rows = zip(*(_joint_row(res, j) for j in range(1, c.n_blades + 1)), strict=True)
+    t_pred = _csv(out / "identified_patterns.csv", ["joint", "source", "pattern L", "pattern R", "k-NN distance",
+                                                     "outside the synthetic family (%)", "beyond 2x the ROM scatter",
+                                                     "area L (%)", "area R (%)", "reference area L (%)",
+                                                     "reference area R (%)"], list(rows))
+    save_patterns(out / "identified_patterns.npz", res.final_patterns)
+    names = [f"{s['joint']}: {'film' if s['joint'] in res.known else s['pattern_L'] + '/' + s['pattern_R']}"
+             for s in joints]
+    figs = [{"file": _fig(plot_bias(bias_pct, spread_pct, feat), out / "bias.png"),
+             "caption": "Per-mode ROM bias estimated on the filmed joints; removed from every joint's measured "
+                        "features before the k-NN."},
+            {"file": _fig(plot_grid_error(res.step1, blade_labels=[f"joint {j}" for j in res.joints]),
+                          out / "step1_epsilon.png"),
+             "caption": "Step 1 of the k-NN: normalized δ grid error ε (Eq. 40, paper Fig. 19); |ε| ≤ 50 % means "
+                        "the nearest grid row was chosen."},
+            {"file": _fig(plot_joint_patterns(res.final_patterns, names, res.reference),
+                          out / "identified_patterns_map.png"),
+             "caption": "Identified pattern of every joint (films at the known joints)"
+                        + (", beside the reference pattern (paper Tables 6–7)." if res.reference is not None else ".")}]
+    text = [f"ROM bias per tracked mode (%): {np.round(bias_pct, 3).tolist()} "
+            f"({'removed' if res.options.bias else 'not removed: --no-bias'}).",
+            f"Step 1: max |ε| = {float(np.max(np.abs(eps))):.1f} %."]
+    tables = [{"file": t_pred, "caption": "Identified pattern of every joint (paper Tables 6–7) and its contact "
+               "area fraction; 'outside the synthetic family': how far (largest feature, % of its frequency) the "
+               "joint's measured features lie beyond what the synthetic pairs reach at its δ (0: within reach)."},
+              {"file": t_bias, "caption": "ROM bias per tracked mode."},
+              {"file": t_eps, "caption": "Step-1 grid error ε per joint and δ mode (Eq. 40)."}]
+    geo = _geometric(res, out, figs, tables, text)
+    return ({"id": "identification", "title": "Bias correction and identification", "text": text, "figures": figs,
+             "tables": tables}, list(joints), geo)
+
+
+def _d1b_section(res: RunResult, out: Path) -> tuple[dict, dict]:
+    rows_d, fm = res.d1b_rows, [m + 1 for m in res.dataset.feature_modes]
+    meas = np.array([r["measured_hz"] for r in rows_d])
+    ident = np.array([r["identified_hz"] for r in rows_d])
+    jj = [r["joint"] for r in rows_d]
+    header = ["joint", "source"] + [f"measured mode {m} (Hz)" for m in fm] + [f"identified mode {m} (Hz)" for m in fm]
+    body = [[r["joint"], r["source"], *map(float, r["measured_hz"]), *map(float, r["identified_hz"])] for r in rows_d]
+    figs = [{"file": _fig(plot_d1b_features(jj, meas, ident, fm, title="identified ROM (bias added back) vs measured"),
+                          out / "d1b_experimental.png"),
+             "caption": "Disk–one-blade feature modes: the ROM with each joint's identified pattern (its bias added "
+                        "back) against the measured frequencies (paper Fig. 27)."}]
+    summary = {"experimental_mean_abs_df_pct": float(np.nanmean(np.abs(ident / meas - 1)) * 100)}
+    if res.reference is not None:
+        refh = np.array([r["reference_hz"] for r in rows_d])
+        num = np.array([r["numerical_hz"] for r in rows_d])
+        header += [f"reference-pattern ROM mode {m} (Hz)" for m in fm] + [f"numerical-input ROM mode {m} (Hz)"
+                                                                         for m in fm]
+        body = [b + [*map(float, r["reference_hz"]), *map(float, r["numerical_hz"])]
+                for b, r in zip(body, rows_d, strict=True)]
+        figs.append({"file": _fig(plot_d1b_features(jj, refh, num, fm, title="numerical input: identified vs "
+                                                    "reference pattern (ROM)"), out / "d1b_numerical.png"),
+                     "caption": "Disk–one-blade feature modes on the numerical input: ROM with the identified pattern "
+                                "against the ROM with the reference pattern (paper Fig. 23)."})
+        unknown = [k for k, r in enumerate(rows_d) if r["source"] != "film"]
+        if unknown:
+            summary["numerical_mean_abs_df_pct"] = float(np.mean(np.abs(num[unknown] / refh[unknown] - 1)) * 100)
+    _csv(out / "d1b_validation.csv", header, body)
+    return {"id": "d1b", "title": "Disk–one-blade validation",
+            "text": [f"Feature modes {fm}. Mean |Δf| of the identified ROM against the measurement: "
+                     f"{summary['experimental_mean_abs_df_pct']:.3f} %."],
+            "figures": figs, "tables": [{"file": "d1b_validation.csv", "caption": "Feature frequencies per joint."}]}, \
+        summary
+
+
+def _table8_rows(cases: dict) -> list[list]:
+    rows = []
+    for key, label in (("A", "Case A"), ("B", "Case B"), ("B_no_bias", "Case B, no bias correction"), ("C", "Case C")):
+        v, p = cases[key], PAPER_TABLE8.get(key, {})
+        rows.append([label, *(("unavailable",) * 3 if v is None else (v["mean_abs_df_pct"], v["mean_mac"],
+                                                                       v["n_modes"])),
+                     p.get("mean_abs_df_pct", ""), p.get("mean_mac", "")])
+    for key in ("A", "B"):
+        v = cases["baseline"][key]
+        rows.append([f"baseline (as Case {key})", *(("unavailable",) * 3 if v is None
+                                                     else (v["mean_abs_df_pct"], v["mean_mac"], v["n_modes"])), "", ""])
+    return rows
+
+
+def _full_section(res: RunResult, out: Path) -> dict:
+    figs = []
+    for key, comp in res.validation.comparisons.items():
+        figs.append({"file": _fig(plot_mode_comparison(comp, title=CASE_TITLES[key]), out / f"full_{key}.png"),
+                     "caption": CASE_TITLES[key] + " (paper Figs. 24, 28)."})
+        _csv(out / f"full_pairs_{key}.csv", ["reference mode", "predicted mode", "f reference (Hz)",
+                                             "f predicted (Hz)", "Δf (%)", "MAC"],
+             [[int(a) + 1, int(b) + 1, float(fa), float(fb), float(e), float(m)] for (a, b), fa, fb, e, m in
+              zip(comp.pairs, comp.freq_ref_hz, comp.freq_pred_hz, comp.freq_error_pct, comp.mac, strict=True)])
+    tables = [{"file": _csv(out / "table8.csv", ["case", "mean |Δf| (%)", "mean MAC", "modes", "paper |Δf| (%)",
+                                                 "paper MAC"], _table8_rows(res.cases)),
+               "caption": "Paper Table 8 with the baseline rows: the mean known pattern at every unfilmed joint."}]
+    ema.write_modes(out / "identified_rom_modes.uff", rom_modal_model(res.full["identified"]),
+                    id1=f"bladetwin identified ROM, campaign {res.campaign.name}")
+    return {"id": "full", "title": "Full bladed disk: Cases A, B, C (Table 8)",
+            "text": ["Case A: ROM with patterns identified from the numerical input against the ROM with the "
+                     "reference patterns. Case B: ROM with the patterns identified from the measurements against the "
+                     "measured modes. Case C: ROM with the reference patterns against the measured modes (the model "
+                     "error). The baseline gives every unfilmed joint the majority pattern of the films. The "
+                     "identified ROM's modes are in identified_rom_modes.uff (UFF 55, rig DOF labels)."],
+            "figures": figs, "tables": tables}
+
+
+def write_outputs(res: RunResult, out: Path, *, command: str = "bladetwin run") -> dict:
+    """Write every output of a run into ``out`` and return the summary (also written to summary.json)."""
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    notes: list[str] = []
+    sections = [_ema_section(res, out, notes), _patterns_section(res, out)]
+    ident, joints, geo = _identification_section(res, out)
+    d1b, d1b_summary = _d1b_section(res, out)
+    sections += [ident, d1b, _full_section(res, out)]
+    summary = summary_of(res, command)
+    summary["notes"] = summary["notes"] + notes
+    summary.update(_clean({"joints": joints, "sections": sections, "geometric": geo, "d1b": d1b_summary}))
+    summary["files"] = {"patterns": "identified_patterns.npz", "rom_modes_uff": "identified_rom_modes.uff"}
+    atomic_write_text(out / "summary.json", json.dumps(summary, indent=2, allow_nan=False, default=_nan) + "\n")
+    return summary
+
+
+def _nan(o):
+    raise TypeError(f"not JSON serializable: {type(o).__name__}")
+
+
+def _clean(obj):
+    """NaN/inf → None, numpy scalars → Python, recursively (summary.json is strict JSON)."""
+    if isinstance(obj, dict):
+        return {k: _clean(v) for k, v in obj.items()}
+    if isinstance(obj, list | tuple):
+        return [_clean(v) for v in obj]
+    if isinstance(obj, np.generic):
+        obj = obj.item()
+    if isinstance(obj, float) and not np.isfinite(obj):
+        return None
+    return obj
+
+
+def summary_of(res: RunResult, command: str) -> dict:
+    """summary.json's figures (without the report sections)."""
+    c = res.campaign
+    return _clean({
+        "campaign": c.name, "campaign_dir": str(c.root), "kind": c.kind, "n_blades": c.n_blades,
+        "grid": list(c.grid), "known_joints": list(c.known_joints),
+        "generated": datetime.now(UTC).strftime("%Y-%m-%dT%H:%M:%SZ"), "command": command,
+        "report": "report.html",
+        "feature_modes": [m + 1 for m in res.dataset.feature_modes],
+        "step1": {"max_abs_eps_pct": float(np.max(np.abs(res.step1.epsilon_pct)))},
+        "bias": {"enabled": res.options.bias, "per_mode_pct": (100 * res.features.bias).tolist(),
+                 "spread_pct": (100 * res.features.spread).tolist(),
+                 "joints": [j for j in c.known_joints if j in set(res.joints.tolist())]},
+        "cases": res.cases, "paper_table8": PAPER_TABLE8, "notes": list(res.notes),
+        "settings": {"n_patterns": res.options.n_patterns, "scale": res.options.scale, "seed": res.options.seed,
+                     "step_pct": res.options.step_pct, "n_features": res.options.n_features,
+                     "refine_max_solves": res.options.refine},
+        "timings_s": {k: round(v, 2) for k, v in res.timings_s.items()},
+    })

@@ -1,0 +1,212 @@
+"""The graph of ``bladetwin run`` for one campaign: every stage as a named node (design §2.1).
+
+:func:`campaign_pipeline` lists the nodes a campaign needs (one EMA node per test, one refinement per unfilmed
+joint and input, one full solve per set of patterns) and :func:`campaign_sources` the values they start from.
+``bladetwin run`` asks for every output; ``bladetwin identify …`` asks for one node and gets it, and what it
+needs, from the same store.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+from rom.cache import hash_inputs
+
+from . import bias, dataset, full, knn, measured, models, patterns, refinement, validation
+from .graph import Node, Pipeline
+from .runner import Source
+
+__all__ = ["RunOptions", "test_name", "reference_patterns", "campaign_pipeline", "campaign_sources",
+           "identify_inputs"]
+
+
+@dataclass(frozen=True)
+class RunOptions:
+    """Settings of a run (defaults: the paper's, and the refinement after the k-NN, which is beyond it).
+
+    Attributes
+    ----------
+    cache_dir : Path or None
+        The store (stage results and reduced models); default ``$BLADETWIN_CACHE`` or ``.cache/bladetwin``.
+    n_patterns, scale, seed :
+        PCA sampler: synthetic patterns per flank, Eq. 31's Scale, random seed.
+    step_pct : float
+        δ grid step (%).
+    n_features, n_delta_modes : int
+        Feature modes of the k-NN, blade modes on the δ grid.
+    bias : bool
+        Remove the ROM's per-mode bias estimated on the filmed joints.
+    workers : int
+        Worker processes of the runner (each single-threaded); 1 runs every node in this process.
+    dask_workers, scheduler :
+        Build the dataset on a local Dask cluster of that many workers, or on the Dask scheduler at that
+        address; default in a worker. The dataset is the same either way.
+    refine : int
+        After the k-NN, refine every unfilmed joint's pattern by a compass search of at most this many d1b
+        solves (:func:`identify.refine.refine_pattern`, beyond the paper); 0: the k-NN's pair, as the paper.
+    """
+
+    cache_dir: Path | None = None
+    n_patterns: int = 10
+    scale: float = 1.0
+    seed: int = 0
+    step_pct: float = 0.5
+    n_features: int = 3
+    n_delta_modes: int = 3
+    bias: bool = True
+    workers: int = 2
+    dask_workers: int | None = None
+    scheduler: str | None = None
+    refine: int = 40
+
+
+def test_name(t) -> str:
+    """A test's node name: its type, and its blade or joint number (``blade_03``, ``d1b_12``, ``disk``)."""
+    return t.type if t.index is None else f"{t.type}_{t.index:02d}"
+
+
+def reference_patterns(campaign) -> list | None:
+    """Reference patterns of every joint: ``truth/patterns.npz`` of a virtual campaign, or films of all joints."""
+    from ..campaign import CampaignError
+
+    truth = campaign.truth_dir
+    if truth is not None and (truth / "patterns.npz").is_file():
+        from rom.pattern_io import load_patterns
+
+        pats = load_patterns(truth / "patterns.npz")
+        if len(pats) != campaign.n_blades:
+            raise CampaignError(f"{truth / 'patterns.npz'}: {len(pats)} patterns for {campaign.n_blades} joints")
+        return pats
+    if len(campaign.known_joints) == campaign.n_blades:
+        films = patterns.read_films(campaign)
+        return [patterns.film_patterns(films)[j] for j in range(1, campaign.n_blades + 1)]
+    return None
+
+
+def _has_reference(campaign) -> bool:
+    truth = campaign.truth_dir
+    return (truth is not None and (truth / "patterns.npz").is_file()) or len(campaign.known_joints) == \
+        campaign.n_blades
+
+
+def identify_inputs(campaign, opts: RunOptions) -> list[str]:
+    """The inputs the identification runs on (:data:`bladetwin.stages.knn.INPUTS`) for this campaign."""
+    return [n for n in knn.INPUTS if (n != "experimental_no_bias" or opts.bias)
+            and (n != "numerical" or _has_reference(campaign))]
+
+
+def campaign_sources(campaign, bd, store, opts: RunOptions) -> dict[str, Source]:
+    """The values a campaign's pipeline starts from, each with the key its dependants hash."""
+    src = {"campaign": Source(campaign, hash_inputs("campaign", str(campaign.root),
+                                                   (campaign.root / "campaign.toml").read_bytes())),
+           "fe_model": Source(bd, models.model_key(bd)),
+           "@store": Source(store, "store"),
+           "@dask": Source(dataset.DaskSettings(opts.dask_workers, opts.scheduler), "dask")}
+    for t in campaign.tests:
+        src[f"test/{test_name(t)}"] = Source(t, measured.test_key(t.file, t.picks, t.max_order))
+    return src
+
+
+def _ema_nodes(p: Pipeline, campaign) -> None:
+    for t in campaign.tests:
+        name = test_name(t)
+        # the dense full-assembly spectrum first: it is the longest EMA, the others fill the other worker
+        p.add(Node(f"ema/{name}", measured.fit_test, {"test": f"test/{name}"},
+                   priority=100 if t.type == "assembly" else 20, label=f"EMA {name}"))
+    blades = {test_name(t): f"ema/{test_name(t)}" for t in campaign.of_type("blade")}
+    p.add(Node("blade_table", measured.blade_table, blades, where="parent"))
+
+
+def _model_nodes(p: Pipeline) -> None:
+    bd = {"bd": "fe_model"}
+    p.add(Node("disk_cb", models.reduce_disk_cb, bd, priority=90, label="Craig–Bampton disk built"))
+    p.add(Node("blade_rubin", models.reduce_blade_rubin, bd, priority=80, label="Rubin blade built"))
+    p.add(Node("disk_cyclic", models.reduce_disk_all_slots, bd, priority=50, label="cyclic all-slot disk built"))
+    p.add(Node("delta_all", models.blade_deltas, {"blades": "blade_table", "blade": "blade_rubin"}, where="parent"))
+
+
+def _pattern_nodes(p: Pipeline, opts: RunOptions, n_blades: int) -> None:
+    p.add(Node("films", patterns.read_films, {"campaign": "campaign"}, where="parent", stored=False,
+               content_key=True))
+    p.add(Node("known", patterns.film_patterns, {"films": "films"}, where="parent", stored=False, content_key=True))
+    p.add(Node("baseline", patterns.mean_known_pattern, {"known": "known"}, where="parent", stored=False,
+               content_key=True))
+    p.add(Node("reference", reference_patterns, {"campaign": "campaign"}, where="parent", stored=False,
+               content_key=True))
+    p.add(Node("synthetic", patterns.synthesize, {"films": "films"},
+               {"n_patterns": opts.n_patterns, "scale": opts.scale, "seed": opts.seed}, where="parent"))
+    p.add(Node("patterns/baseline", refinement.pattern_list, {"known": "known", "baseline": "baseline"},
+               {"n_blades": n_blades}, where="parent", stored=False, content_key=True))
+
+
+def _identify_nodes(p: Pipeline, campaign, opts: RunOptions) -> None:
+    rom = {"disk": "disk_cb", "blade": "blade_rubin"}
+    p.add(Node("sensitivity", dataset.sensitivity_node, {**rom, "synthetic": "synthetic"},
+               {"n_features": opts.n_features}, priority=60, label="sensitivity"))
+    in_parent = opts.dask_workers is not None or opts.scheduler is not None  # a Dask client from a worker: no
+    p.add(Node("dataset", dataset.dataset_node, {**rom, "synthetic": "synthetic", "delta_all": "delta_all",
+                                                 "sens": "sensitivity", "store": "@store", "dask": "@dask"},
+               {"n_features": opts.n_features, "n_delta_modes": opts.n_delta_modes, "step_pct": opts.step_pct},
+               where="parent" if in_parent else "worker", priority=60, label="dataset"))
+    d1b = {test_name(t): f"ema/{test_name(t)}" for t in campaign.of_type("d1b")}
+    p.add(Node("features", bias.features, {**rom, "dataset": "dataset", "delta_all": "delta_all", "known": "known",
+                                           "reference": "reference", **d1b},
+               {"n_delta_modes": opts.n_delta_modes, "bias": opts.bias}, priority=60,
+               label="bias on the filmed joints"))
+    p.add(Node("predictions", knn.predict, {"dataset": "dataset", "features": "features", "delta_all": "delta_all",
+                                            "known": "known"},
+               {"n_delta_modes": opts.n_delta_modes, "bias": opts.bias, "step_pct": opts.step_pct}, where="parent"))
+    unfilmed = [t.index for t in campaign.of_type("d1b") if t.index not in campaign.known_joints]
+    for k, name in enumerate(identify_inputs(campaign, opts)):
+        refined = {}
+        for j in unfilmed if opts.refine else ():
+            refined[f"joint_{j:02d}"] = p.add(Node(
+                f"refine/{name}/joint_{j:02d}", refinement.refine_joint,
+                {**rom, "dataset": "dataset", "films": "films", "synthetic": "synthetic",
+                 "predictions": "predictions", "delta_all": "delta_all", "store": "@store"},
+                {"input": name, "joint": int(j), "max_solves": int(opts.refine)}, priority=40 - 10 * k,
+                label=f"joint {j} refined ({name} input)")).name
+        p.add(Node(f"patterns/{name}", refinement.joint_patterns, {"predictions": "predictions", "known": "known",
+                                                                  "baseline": "baseline", **refined},
+                   {"input": name, "n_blades": campaign.n_blades}, where="parent", stored=False, content_key=True))
+
+
+#: The full solves: name → the patterns they take, and their priority.
+FULL = {"baseline": ("patterns/baseline", 45), "reference": ("reference", 45),
+        "identified": ("patterns/experimental", 35), "identified_no_bias": ("patterns/experimental_no_bias", 25),
+        "numerical": ("patterns/numerical", 15)}
+
+
+def _validation_nodes(p: Pipeline, campaign, opts: RunOptions) -> None:
+    inputs = identify_inputs(campaign, opts)
+    assembly = {"assembly": "ema/assembly"} if campaign.of_type("assembly") else {}
+    p.add(Node("n_full_modes", full.n_full_modes, assembly, {"n_blades": campaign.n_blades}, where="parent",
+               stored=False))
+    names = [n for n in FULL if n == "baseline" or (n == "reference" and "numerical" in inputs)
+             or FULL[n][0].split("/")[-1] in inputs]
+    for name in names:
+        pats, prio = FULL[name]
+        p.add(Node(f"full/{name}", full.solve_assembly, {"cyclic": "disk_cyclic", "bd": "fe_model",
+                                                         "blade": "blade_rubin", "patterns": pats,
+                                                         "delta_all": "delta_all", "n_modes": "n_full_modes"},
+                   priority=prio, label=f"full-assembly ROM '{name}' solved"))
+    p.add(Node("validation", validation.full_validation, {**assembly, **{n: f"full/{n}" for n in names}},
+               {"bias": opts.bias}, where="parent"))
+    numerical = "patterns/numerical" if "numerical" in inputs else "reference"
+    p.add(Node("d1b_rows", validation.d1b_rows, {
+        "disk": "disk_cb", "blade": "blade_rubin", "dataset": "dataset", "features": "features",
+        "delta_all": "delta_all", "known": "known", "identified": "patterns/experimental", "reference": "reference",
+        "numerical": numerical}, {"source": "k-NN + refinement" if opts.refine else "k-NN"}, priority=30,
+        label="disk-one-blade validation"))
+
+
+def campaign_pipeline(campaign, opts: RunOptions) -> Pipeline:
+    """Every node of ``bladetwin run`` for ``campaign`` (names as in the module notes)."""
+    p = Pipeline()
+    _ema_nodes(p, campaign)
+    _model_nodes(p)
+    _pattern_nodes(p, opts, campaign.n_blades)
+    _identify_nodes(p, campaign, opts)
+    _validation_nodes(p, campaign, opts)
+    return p

@@ -1,0 +1,55 @@
+"""Stage nodes on the FE model: its reductions (CB disk, Rubin blade, cyclic all-slot disk) and the blade δ."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from rom.craig_bampton import CraigBamptonModel, reduce_disk
+from rom.cyclic import CyclicDiskModel, reduce_disk_cyclic
+from rom.errors import ROMError
+from rom.mistuning import rom_deltas
+from rom.rubin import RubinModel, reduce_blade
+
+__all__ = ["CyclicBuild", "model_key", "reduce_disk_cb", "reduce_blade_rubin", "reduce_disk_all_slots",
+           "blade_deltas"]
+
+
+@dataclass(frozen=True, eq=False)
+class CyclicBuild:
+    """The cyclic all-slot CB disk (:mod:`rom.cyclic`), or why it was refused (``model`` None)."""
+
+    model: CyclicDiskModel | None
+    refused: str = ""
+
+
+def model_key(bd) -> str:
+    """The FE model's identity for the store: every input of its reductions (hashes K and M, about 2 s)."""
+    from rom import cache
+
+    disk = cache.disk_key(bd)
+    return cache.hash_inputs("fe-model", disk, cache.blade_key(bd), cache.cyclic_disk_key(bd, base_key=disk))
+
+
+def reduce_disk_cb(bd) -> CraigBamptonModel:
+    """The one-slot Craig–Bampton disk of the disk–one-blade ROMs (:func:`rom.craig_bampton.reduce_disk`)."""
+    return reduce_disk(bd, (1,))
+
+
+def reduce_blade_rubin(bd) -> RubinModel:
+    """The free blade reduced by Rubin's method (:func:`rom.rubin.reduce_blade`)."""
+    return reduce_blade(bd)
+
+
+def reduce_disk_all_slots(bd) -> CyclicBuild:
+    """The cyclic all-slot CB disk of the full-assembly solves; a disk that is not cyclic gives its reason."""
+    try:
+        return CyclicBuild(reduce_disk_cyclic(bd))
+    except ROMError as exc:
+        return CyclicBuild(None, str(exc))
+
+
+def blade_deltas(blades, blade: RubinModel) -> np.ndarray:
+    """Each blade's δ (relative) on the ROM blade's modes from the measured deltas, shape (n_blades, n_modes)."""
+    return rom_deltas(blades.frequencies_hz, blades.deltas_pct, blade.frequencies_hz)

@@ -1,0 +1,131 @@
+"""A campaign's run gathered from its nodes' outputs: what the writer turns into tables, figures and a report."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from identify.dataset import Dataset
+from identify.validation import GridError
+from rom.contact import ContactPattern
+
+from .bias import MATCH_WINDOW, Features
+from .campaign_graph import RunOptions, identify_inputs, test_name
+from .full import method_note
+from .knn import Predictions
+from .measured import BladeTests
+from .validation import FullValidation
+
+__all__ = ["PAPER_TABLE8", "RunResult", "gather"]
+
+#: The paper's Table 8 (mean |Δf| in %, mean MAC), shown beside the run's own cases.
+PAPER_TABLE8 = {"A": {"mean_abs_df_pct": 0.07, "mean_mac": 0.91}, "B": {"mean_abs_df_pct": 0.73, "mean_mac": 0.85},
+                "C": {"mean_abs_df_pct": 0.46, "mean_mac": 0.82}}
+
+
+@dataclass(frozen=True, eq=False)
+class RunResult:
+    """Everything a campaign's run computed (the input of :mod:`bladetwin.outputs`).
+
+    Frequencies in Hz, δ and bias relative (0.01 = 1 %). ``ema`` maps each test's name to (its manifest entry,
+    its :class:`~bladetwin.stages.measured.TestFit`); ``final_patterns`` holds one pattern per joint 1..N (films
+    at the filmed joints); ``full`` the full-assembly ROM modes by name (identified, identified_no_bias,
+    baseline, reference, numerical).
+    """
+
+    campaign: object
+    options: RunOptions
+    bd: object
+    ema: dict
+    blades: BladeTests
+    films: dict
+    known: dict[int, ContactPattern]
+    synthetic: object
+    sensitivity: object
+    dataset: Dataset
+    delta_all: np.ndarray
+    features: Features
+    predictions: Predictions
+    final_patterns: list[ContactPattern]
+    baseline_pattern: ContactPattern
+    reference: list[ContactPattern] | None
+    d1b_rows: list[dict]
+    full: dict
+    validation: FullValidation
+    notes: list[str]
+    timings_s: dict[str, float] = field(default_factory=dict)
+
+    @property
+    def joints(self) -> np.ndarray:
+        return self.features.joints
+
+    @property
+    def step1(self) -> GridError:
+        return self.predictions.step1
+
+    @property
+    def cases(self) -> dict:
+        return self.validation.cases
+
+
+def _outside_note(res: dict, opts: RunOptions) -> str | None:
+    pred, f, ds = res["predictions"], res["features"], res["dataset"]
+    feat = list(ds.feature_modes)
+    tol = 2 * f.spread[feat]
+    outside = {j: lab[3] for j, lab in pred.labels["experimental"].items() if lab[4]}
+    if not outside:
+        return None
+    worst = max(outside, key=lambda j: np.max(np.abs(outside[j]) - tol))
+    m = int(np.argmax(np.abs(outside[worst]) - tol))
+    return (f"Joints {sorted(outside)}: their measured feature frequencies{' (bias removed)' if opts.bias else ''} "
+            f"lie outside the range the {len(ds.patterns_L)} × {len(ds.patterns_R)} synthetic pattern pairs reach at "
+            f"their δ, by more than twice the ROM's scatter on the filmed joints (joint {worst}: "
+            f"{100 * abs(outside[worst][m]):.2f} % on mode {feat[m] + 1}, scatter {100 * f.spread[feat[m]]:.2f} %). "
+            "Their contact is likely outside the synthetic family and their identified pattern its nearest edge, "
+            "not a match: trust it less, and film one of them to widen the family.")
+
+
+def _refine_note(res: dict, campaign, opts: RunOptions) -> str:
+    parts = []
+    for name in identify_inputs(campaign, opts):
+        found = [r for k, r in res.items() if k.startswith(f"refine/{name}/") and r is not None]
+        before = float(np.mean([r.start_error_pct for r in found])) if found else float("nan")
+        after = float(np.mean([r.error_pct for r in found])) if found else float("nan")
+        parts.append(f"{name.replace('_', ' ')} input {before:.3f} % → {after:.3f} %")
+    tol = res["predictions"].tolerance_pct["experimental"]
+    return ("Unfilmed joints' patterns refined after the k-NN by a compass search in the synthetic family and the "
+            f"contact level (≤ {opts.refine} d1b solves each, stopping at the model error: {tol:.3f} %"
+            f"{' with the bias correction' if opts.bias else ''}; beyond the paper). Mean feature error, k-NN pair "
+            "→ refined: " + "; ".join(parts))
+
+
+def _notes(res: dict, campaign, opts: RunOptions, fits: dict) -> list[str]:
+    notes = []
+    picked = [t.file.name for t, fit in fits.values() if fit.picked]
+    if picked:
+        notes.append("Picks files replaced the automatic pole selection for: " + ", ".join(picked) + ".")
+    if opts.bias and not res["features"].bias_estimated:
+        notes.append("Fewer than 2 filmed joints have a disk-one-blade test: the model bias was not estimated.")
+    missing = res["predictions"].missing
+    if missing:
+        notes.append(f"Joints {missing}: a feature mode was not found in the disk-one-blade EMA within "
+                     f"{100 * MATCH_WINDOW:.0f} %; they get the baseline pattern.")
+    outside = _outside_note(res, opts)
+    if outside:
+        notes.append(outside)
+    if opts.refine:
+        notes.append(_refine_note(res, campaign, opts))
+    notes.append(method_note({k.split("/", 1)[1]: v for k, v in res.items() if k.startswith("full/")}))
+    return notes + list(res["validation"].notes)
+
+
+def gather(res, campaign, opts: RunOptions, bd, timings: dict[str, float]) -> RunResult:
+    """The :class:`RunResult` of one campaign from the runner's outputs (names of its pipeline)."""
+    fits = {test_name(t): (t, res[f"ema/{test_name(t)}"]) for t in campaign.tests}
+    fulls = {k.split("/", 1)[1]: res[k].modes for k in res if k.startswith("full/")}
+    return RunResult(campaign, opts, bd, fits, res["blade_table"], res["films"], res["known"], res["synthetic"],
+                     res["sensitivity"], res["dataset"], res["delta_all"], res["features"], res["predictions"],
+                     res["patterns/experimental"], res["baseline"], res["reference"], res["d1b_rows"], fulls,
+                     res["validation"], _notes(res, campaign, opts, fits), timings)
+

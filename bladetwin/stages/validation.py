@@ -1,0 +1,126 @@
+"""Validation nodes: the disk–one-blade feature table and the full assembly's Cases A/B/C (paper Table 8)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+import ema
+from identify.dataset import Dataset
+from identify.numbering import rom_modal_model
+from identify.validation import ModeComparison, compare_modes
+from rom.fe_assembly import AssemblyModes
+
+from .bias import Features, tracker_for
+from .full import FullSolve
+
+__all__ = ["MEASURED_WINDOW", "MEASURED_MAC_MIN", "FullValidation", "d1b_rows", "vs_measured", "case_figures",
+           "full_validation"]
+
+#: Pairing of a ROM's modes with measured ones (Cases B, C): MAC-maximizing, within ±5 %, MAC ≥ 0.3, as the
+#: rig's own Case C check (``lab.model_error``). Measured shapes in dense families can be poor; a mode without
+#: a credible partner stays unpaired (counted in ``n_reference_modes``) rather than forced onto a distant one.
+MEASURED_WINDOW, MEASURED_MAC_MIN = 0.05, 0.3
+
+
+@dataclass(frozen=True, eq=False)
+class FullValidation:
+    """The full assembly's comparisons by name (``A``, ``B``, ``B_no_bias``, ``C``, ``baseline_A``,
+    ``baseline_B``), Table 8's figures (:func:`case_figures`) and the notes on what was not compared."""
+
+    comparisons: dict
+    cases: dict
+    notes: list
+
+
+def d1b_rows(disk, blade, dataset: Dataset, features: Features, delta_all: np.ndarray, known: dict,
+             identified: list, reference, numerical, *, source: str) -> list[dict]:
+    """The node: each joint's feature frequencies (Hz), measured and by the ROM with its identified pattern
+    (bias added back), and with the reference and numerical-input patterns where there are references."""
+    tracker = tracker_for(disk, blade, dataset)
+    feat = list(dataset.feature_modes)
+    bias = features.bias
+    rows = []
+    for k, j in enumerate(int(j) for j in features.joints):
+        # a filmed joint's identified pattern is its film: its ROM frequencies were tracked for the bias already
+        f_id = (features.rom_known_hz[j] if j in features.rom_known_hz
+                else tracker.track(identified[j - 1], delta_all[j - 1]).frequencies_hz)
+        row = {"joint": j, "source": "film" if j in known else source, "measured_hz": features.measured_hz[k, feat],
+               "identified_hz": f_id[feat] * (1 + bias[feat])}
+        if reference is not None:
+            row["reference_hz"] = tracker.track(reference[j - 1], delta_all[j - 1]).frequencies_hz[feat]
+            row["numerical_hz"] = tracker.track(numerical[j - 1], delta_all[j - 1]).frequencies_hz[feat]
+        rows.append(row)
+    return rows
+
+
+def vs_measured(measured: ema.ModalModel, rom: AssemblyModes) -> ModeComparison:
+    """A ROM's modes against the measured ones, on their common DOFs (shapes sign-aware through the MAC)."""
+    from ema.mac import common_dofs
+
+    from ..campaign import CampaignError
+
+    model = rom_modal_model(rom)
+    pa, pb, _ = common_dofs(measured, model)
+    if pa.shape[0] < 2:
+        raise CampaignError("the full-assembly test and the ROM share fewer than 2 measurement DOFs: the node "
+                            "numbering of the UFF file does not follow the rig's convention (docs/campaign.md)")
+    return compare_modes((measured.frequency_hz, pa), (model.frequency_hz, pb), freq_window=MEASURED_WINDOW,
+                         mac_min=MEASURED_MAC_MIN)
+
+
+def case_figures(c: ModeComparison | None) -> dict | None:
+    """Table 8's figures of one comparison: mean |Δf| (%), mean MAC, pairs, and the reference modes offered."""
+    if c is None or not c.pairs.size:
+        return None
+    return {"mean_abs_df_pct": c.mean_abs_freq_error_pct, "mean_mac": c.mean_mac, "n_modes": int(len(c.pairs)),
+            "n_reference_modes": int(c.mac_matrix.shape[0])}
+
+
+def _in_band(m: AssemblyModes, f_max: float) -> AssemblyModes:
+    keep = m.frequencies_hz <= f_max
+    return AssemblyModes(m.frequencies_hz[keep], m.meas_shapes[:, keep], m.meas_labels)
+
+
+def _measured_in_band(measured: ema.ModalModel, full: dict, notes: list) -> tuple[ema.ModalModel, float]:
+    f_max = float(measured.frequency_hz.max())
+    top = float(min(m.frequencies_hz.max() for m in full.values()))
+    if top < f_max:
+        notes.append(f"The ROM's {len(next(iter(full.values())).frequencies_hz)} modes reach {top:.1f} Hz, below "
+                     f"the highest measured mode ({f_max:.1f} Hz): the measured modes above are not compared.")
+        keep = measured.frequency_hz <= top
+        measured = ema.ModalModel(measured.frequency_hz[keep], measured.damping_ratio[keep],
+                                  measured.shapes[:, keep], measured.dofs)
+        f_max = top
+    return measured, f_max
+
+
+def full_validation(assembly=None, *, bias: bool, **solves: FullSolve) -> FullValidation:
+    """The node: Cases A, B, C and the baseline's, from the full solves by name and the assembly's EMA."""
+    full = {name: s.modes for name, s in solves.items()}
+    comps: dict[str, ModeComparison] = {}
+    notes: list[str] = []
+    measured = assembly.model if assembly is not None and assembly.model.n_modes else None
+    f_max = None
+    if measured is not None:
+        measured, f_max = _measured_in_band(measured, full, notes)
+        comps["B"] = vs_measured(measured, full["identified"])
+        comps["baseline_B"] = vs_measured(measured, full["baseline"])
+        if bias:
+            comps["B_no_bias"] = vs_measured(measured, full["identified_no_bias"])
+        if "reference" in full:
+            comps["C"] = vs_measured(measured, full["reference"])
+    else:
+        notes.append("No full-assembly test: Cases B and C are unavailable.")
+    if "reference" in full:
+        ref = full["reference"] if f_max is None else _in_band(full["reference"], f_max)
+        for name, other in (("A", "numerical"), ("baseline_A", "baseline")):
+            comps[name] = compare_modes((ref.frequencies_hz, ref.meas_shapes),
+                                        (full[other].frequencies_hz, full[other].meas_shapes))
+    else:
+        notes.append("Cases A and C need a reference pattern for every joint (truth/ of a virtual campaign, or "
+                     "a film of every joint); this campaign has none, so they are unavailable.")
+    cases = {k: case_figures(comps.get(k)) for k in ("A", "B", "B_no_bias", "C")}
+    cases["baseline"] = {"A": case_figures(comps.get("baseline_A")), "B": case_figures(comps.get("baseline_B"))}
+    return FullValidation(comps, cases, notes)
