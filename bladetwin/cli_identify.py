@@ -20,33 +20,12 @@ from pathlib import Path
 
 import numpy as np
 
+from .cli_options import add_stage_options, stage_options
 from .util import atomic_savefig, atomic_write_text, format_table, print_json
 
 __all__ = ["register", "save_synthetic", "load_synthetic"]
 
 DEFAULT_CAMPAIGN = "measurements/academic"
-
-
-def _options(p, *, dask: bool = False) -> None:
-    """The settings that key the stages: the same flags and defaults as ``bladetwin run``, so a stage command
-    after a run finds that run's results in the store."""
-    p.add_argument("--cache-dir", default=None,
-                   help="the store of stage results (default: $BLADETWIN_CACHE or .cache/bladetwin)")
-    p.add_argument("--n", type=int, default=10, help="synthetic patterns per flank (default: %(default)s)")
-    p.add_argument("--scale", type=float, default=1.0, help="Eq. 31's Scale (default: %(default)s)")
-    p.add_argument("--seed", type=int, default=0, help="seed of the PCA sampler (default: %(default)s)")
-    p.add_argument("--step", type=float, default=0.5, help="δ grid step in %% (default: %(default)s)")
-    p.add_argument("--features", type=int, default=3, help="number of feature modes (default: %(default)s)")
-    p.add_argument("--no-bias", action="store_true",
-                   help="don't remove the ROM's per-mode bias estimated on the filmed joints")
-    p.add_argument("--refine", type=int, default=40, metavar="N",
-                   help="compass-search refinement of each unfilmed joint, ≤ N d1b solves (default: %(default)s)")
-    p.add_argument("--workers", type=int, default=2, help="worker processes (default: %(default)s)")
-    if dask:
-        p.add_argument("--dask-workers", type=int, default=None, metavar="N",
-                       help="build on a local Dask cluster of N worker processes (default: in a worker)")
-        p.add_argument("--scheduler", default=None, metavar="ADDRESS",
-                       help="build on an existing Dask cluster, e.g. tcp://host:8786 (the parts stay here)")
 
 
 def register(sub) -> None:
@@ -62,7 +41,10 @@ def register(sub) -> None:
         p.add_argument("campaign", nargs="?", default=DEFAULT_CAMPAIGN,
                        help="campaign folder with campaign.toml (default: %(default)s)")
         p.add_argument("--out", default=None, help="output folder (default: out/<campaign name>)")
-        _options(p, dask=dask)
+        add_stage_options(p)
+        if dask:
+            p.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                           help="build on an existing Dask cluster, e.g. tcp://host:8786 (the parts stay here)")
         p.add_argument("--json", action="store_true", help="print JSON instead of tables")
         p.add_argument("--quiet", action="store_true", help="no progress on stderr")
         if plot:
@@ -126,16 +108,9 @@ def _stage(args, targets: list[str]):
     """Run ``targets`` of the campaign's graph from the store; returns (campaign, outputs, output folder, runner)."""
     from bladetwin.campaign import read_campaign
     from bladetwin.run import run_nodes
-    from bladetwin.stages import RunOptions
 
-    if args.workers < 1 or args.n < 2 or args.refine < 0:
-        raise ValueError(f"--workers {args.workers}, --n {args.n}, --refine {args.refine}: expected --workers ≥ 1, "
-                         "--n ≥ 2 and --refine ≥ 0")
+    opts = stage_options(args, scheduler=getattr(args, "scheduler", None))
     campaign = read_campaign(args.campaign)
-    opts = RunOptions(cache_dir=Path(args.cache_dir) if args.cache_dir else None, n_patterns=args.n,
-                      scale=args.scale, seed=args.seed, step_pct=args.step, n_features=args.features,
-                      bias=not args.no_bias, workers=args.workers, refine=args.refine,
-                      dask_workers=getattr(args, "dask_workers", None), scheduler=getattr(args, "scheduler", None))
     say = (lambda m: None) if args.quiet else (lambda m: print(f"  {m}", file=sys.stderr, flush=True))
     res, runner = run_nodes(campaign, targets, opts, say)
     if not args.quiet:

@@ -82,7 +82,7 @@ def model_from_args(args, verbose: bool = True):
                                    ("--calibrate", args.calibrate)) if on]
     if given:
         raise ValueError(f"--model {path}: the model's files fix its mesh and grid; drop {', '.join(given)}")
-    from .pipeline import load_model_file
+    from .model import load_model_file
 
     with step(f"importing the model of {path}", verbose):
         return load_model_file(path)

@@ -14,6 +14,7 @@ import sys
 import time
 from pathlib import Path
 
+from .cli_options import add_stage_options, stage_options
 from .util import format_table, print_json
 
 __all__ = ["register", "DEFAULT_CAMPAIGN"]
@@ -31,38 +32,13 @@ def register(sub) -> None:
                         "its reduced models and get an index page comparing them (default: %(default)s)")
     p.add_argument("--out", default=None, help="output folder (default: out/<campaign name>); with several "
                    "campaigns, one folder per campaign under it and index.html (default: out)")
-    p.add_argument("--cache-dir", default=None,
-                   help="the store of stage results and reduced models (default: $BLADETWIN_CACHE or .cache/bladetwin)")
-    p.add_argument("--n", type=int, default=10, help="synthetic patterns per flank (default: %(default)s)")
-    p.add_argument("--scale", type=float, default=1.0, help="Eq. 31's Scale of the PCA sampler (default: %(default)s)")
-    p.add_argument("--seed", type=int, default=0, help="seed of the PCA sampler (default: %(default)s)")
-    p.add_argument("--step", type=float, default=0.5, help="δ grid step in %% (default: %(default)s)")
-    p.add_argument("--features", type=int, default=3, help="feature modes of the k-NN (default: %(default)s)")
-    p.add_argument("--no-bias", action="store_true", help="don't remove the ROM's bias estimated on the filmed joints")
-    p.add_argument("--workers", type=int, default=2, help="worker processes of the stage runner, each "
-                   "single-threaded (default: %(default)s)")
-    p.add_argument("--dask-workers", type=int, default=None, metavar="N",
-                   help="build the dataset on a local Dask cluster of N worker processes (default: in process)")
+    add_stage_options(p)
     p.add_argument("--scheduler", default=None, metavar="ADDRESS",
                    help="send each campaign's graph to an existing Dask cluster, e.g. tcp://host:8786 (the store "
                         "must be a folder the cluster's workers share)")
-    p.add_argument("--refine", type=int, default=40, metavar="N",  # RunOptions.refine (a test checks they agree)
-                   help="refine each unfilmed joint's k-NN pattern by a compass search of at most N disk-one-blade "
-                        "solves (beyond the paper; about N × 0.15 s per joint and input; default: %(default)s; "
-                        "0: the k-NN's pattern, as the paper)")
     p.add_argument("--json", action="store_true", help="print summary.json instead of the short summary")
     p.add_argument("--quiet", action="store_true", help="no progress on stderr")
     p.set_defaults(func=_cmd_run)
-
-
-def _check_args(args) -> None:
-    for name, v, ok in (("--n", args.n, args.n >= 2), ("--scale", args.scale, args.scale > 0),
-                        ("--step", args.step, args.step > 0), ("--features", args.features, args.features >= 1),
-                        ("--workers", args.workers, args.workers >= 1), ("--refine", args.refine, args.refine >= 0),
-                        ("--dask-workers", args.dask_workers, args.dask_workers is None or args.dask_workers >= 1)):
-        if not ok:
-            raise ValueError(f"{name} {v}: expected " + {"--n": "an integer ≥ 2", "--refine": "an integer ≥ 0"}.get(
-                name, "a positive value"))
 
 
 def _say(args, t0: float):
@@ -70,14 +46,6 @@ def _say(args, t0: float):
         if not args.quiet:
             print(f"[{time.perf_counter() - t0:6.1f} s] {msg}", file=sys.stderr, flush=True)
     return say
-
-
-def _options(args):
-    from .stages import RunOptions
-
-    return RunOptions(cache_dir=Path(args.cache_dir) if args.cache_dir else None, n_patterns=args.n,
-                      scale=args.scale, seed=args.seed, step_pct=args.step, n_features=args.features,
-                      bias=not args.no_bias, workers=args.workers, dask_workers=args.dask_workers, refine=args.refine)
 
 
 def _outs(args, campaigns) -> list[Path]:
@@ -92,7 +60,7 @@ def _cmd_run(args) -> int:
     from .outputs import write_outputs
     from .report import render_report
 
-    _check_args(args)
+    opts = stage_options(args)
     t0 = time.perf_counter()
     say = _say(args, t0)
     if not getattr(args, "verbose", False):
@@ -103,7 +71,7 @@ def _cmd_run(args) -> int:
         logging.getLogger("ema").setLevel(logging.ERROR)
     campaigns = [read_campaign(c) for c in args.campaign]
     outs = _outs(args, campaigns)
-    results = _compute(campaigns, _options(args), args.scheduler, say)
+    results = _compute(campaigns, opts, args.scheduler, say)
     command = "bladetwin run " + " ".join(shlex.quote(a) for a in sys.argv[2:]) if sys.argv[1:2] == ["run"] \
         else "bladetwin run " + " ".join(args.campaign)
     summaries, reports = [], []

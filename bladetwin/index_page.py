@@ -10,7 +10,6 @@ import json
 import os
 from pathlib import Path
 
-from .report import format_number
 from .util import atomic_write_text
 
 __all__ = ["INDEX_NAME", "index_rows", "render_index"]
@@ -27,8 +26,7 @@ def index_rows(summaries: list[dict]) -> dict:
         for s in summaries:
             cases = s["cases"]
             v = cases["baseline"]["B"] if key == "baseline_B" else cases.get(key)
-            cells += ["unavailable"] * 2 if v is None else [format_number(v["mean_abs_df_pct"], 3),
-                                                            format_number(v["mean_mac"], 3)]
+            cells += ["unavailable"] * 2 if v is None else [f"{v['mean_abs_df_pct']:.3f}", f"{v['mean_mac']:.3f}"]
         table8.append([label, *cells])
     n = max(s["n_blades"] for s in summaries)
     joints = []
@@ -36,8 +34,8 @@ def index_rows(summaries: list[dict]) -> dict:
         cells = []
         for s in summaries:
             row = next((r for r in s["joints"] if r["joint"] == j), None)
-            cells += ["—"] * 3 if row is None else [row["source"], format_number(row["area_fraction_L_pct"], 3),
-                                                    format_number(row["area_fraction_R_pct"], 3)]
+            cells += ["—"] * 3 if row is None else [row["source"], f"{row['area_fraction_L_pct']:.1f}",
+                                                    f"{row['area_fraction_R_pct']:.1f}"]
         joints.append([j, *cells])
     return {"table8": table8, "joints": joints}
 

@@ -61,6 +61,12 @@ class RunOptions:
     refine: int = 40
 
 
+#: Which EMA first, among the nodes ready with it: the longest chain of the run starts at the CB disk and the blade
+#: and d1b tests (dataset → k-NN → refinement); the disk and full-assembly tests are only needed by the full solves,
+#: which also wait for the cyclic disk.
+EMA_PRIORITY = {"blade": 95, "d1b": 90, "disk": 60, "assembly": 55}
+
+
 def test_name(t) -> str:
     """A test's node name: its type, and its blade or joint number (``blade_03``, ``d1b_12``, ``disk``)."""
     return t.type if t.index is None else f"{t.type}_{t.index:02d}"
@@ -111,17 +117,16 @@ def campaign_sources(campaign, bd, store, opts: RunOptions) -> dict[str, Source]
 def _ema_nodes(p: Pipeline, campaign) -> None:
     for t in campaign.tests:
         name = test_name(t)
-        # the dense full-assembly spectrum first: it is the longest EMA, the others fill the other worker
-        p.add(Node(f"ema/{name}", measured.fit_test, {"test": f"test/{name}"},
-                   priority=100 if t.type == "assembly" else 20, label=f"EMA {name}"))
+        p.add(Node(f"ema/{name}", measured.fit_test, {"test": f"test/{name}"}, priority=EMA_PRIORITY.get(t.type, 50),
+                   label=f"EMA {name}"))
     blades = {test_name(t): f"ema/{test_name(t)}" for t in campaign.of_type("blade")}
     p.add(Node("blade_table", measured.blade_table, blades, where="parent"))
 
 
 def _model_nodes(p: Pipeline) -> None:
     bd = {"bd": "fe_model"}
-    p.add(Node("disk_cb", models.reduce_disk_cb, bd, priority=90, label="Craig–Bampton disk built"))
-    p.add(Node("blade_rubin", models.reduce_blade_rubin, bd, priority=80, label="Rubin blade built"))
+    p.add(Node("disk_cb", models.reduce_disk_cb, bd, priority=100, label="Craig–Bampton disk built"))
+    p.add(Node("blade_rubin", models.reduce_blade_rubin, bd, priority=94, label="Rubin blade built"))
     p.add(Node("disk_cyclic", models.reduce_disk_all_slots, bd, priority=50, label="cyclic all-slot disk built"))
     p.add(Node("delta_all", models.blade_deltas, {"blades": "blade_table", "blade": "blade_rubin"}, where="parent"))
 
@@ -143,16 +148,16 @@ def _pattern_nodes(p: Pipeline, opts: RunOptions, n_blades: int) -> None:
 def _identify_nodes(p: Pipeline, campaign, opts: RunOptions) -> None:
     rom = {"disk": "disk_cb", "blade": "blade_rubin"}
     p.add(Node("sensitivity", dataset.sensitivity_node, {**rom, "synthetic": "synthetic"},
-               {"n_features": opts.n_features}, priority=60, label="sensitivity"))
+               {"n_features": opts.n_features}, priority=85, label="sensitivity"))
     in_parent = opts.dask_workers is not None or opts.scheduler is not None  # a Dask client from a worker: no
     p.add(Node("dataset", dataset.dataset_node, {**rom, "synthetic": "synthetic", "delta_all": "delta_all",
                                                  "sens": "sensitivity", "store": "@store", "dask": "@dask"},
                {"n_features": opts.n_features, "n_delta_modes": opts.n_delta_modes, "step_pct": opts.step_pct},
-               where="parent" if in_parent else "worker", priority=60, label="dataset"))
+               where="parent" if in_parent else "worker", priority=85, label="dataset"))
     d1b = {test_name(t): f"ema/{test_name(t)}" for t in campaign.of_type("d1b")}
     p.add(Node("features", bias.features, {**rom, "dataset": "dataset", "delta_all": "delta_all", "known": "known",
                                            "reference": "reference", **d1b},
-               {"n_delta_modes": opts.n_delta_modes, "bias": opts.bias}, priority=60,
+               {"n_delta_modes": opts.n_delta_modes, "bias": opts.bias}, priority=85,
                label="bias on the filmed joints"))
     p.add(Node("predictions", knn.predict, {"dataset": "dataset", "features": "features", "delta_all": "delta_all",
                                             "known": "known"},

@@ -1,0 +1,56 @@
+"""The settings that key the stages, as command-line flags: one definition for ``run`` and ``identify …``.
+
+A stage command given the same flags as a run (and both take the same defaults, :class:`RunOptions`'s) asks
+the store for the same keys, so it finds that run's results.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from .stages import RunOptions
+
+__all__ = ["add_stage_options", "stage_options"]
+
+_DEFAULTS = RunOptions()
+
+
+def add_stage_options(p) -> None:
+    """Add ``--cache-dir --n --scale --seed --step --features --no-bias --refine --workers --dask-workers``."""
+    d = _DEFAULTS
+    p.add_argument("--cache-dir", default=None,
+                   help="the store of stage results and reduced models (default: $BLADETWIN_CACHE or .cache/bladetwin)")
+    p.add_argument("--n", type=int, default=d.n_patterns, help="synthetic patterns per flank (default: %(default)s)")
+    p.add_argument("--scale", type=float, default=d.scale, help="Eq. 31's Scale of the PCA sampler "
+                   "(default: %(default)s)")
+    p.add_argument("--seed", type=int, default=d.seed, help="seed of the PCA sampler (default: %(default)s)")
+    p.add_argument("--step", type=float, default=d.step_pct, help="δ grid step in %% (default: %(default)s)")
+    p.add_argument("--features", type=int, default=d.n_features, help="feature modes of the k-NN "
+                   "(default: %(default)s)")
+    p.add_argument("--no-bias", action="store_true", help="don't remove the ROM's bias estimated on the filmed joints")
+    p.add_argument("--refine", type=int, default=d.refine, metavar="N",
+                   help="refine each unfilmed joint's k-NN pattern by a compass search of at most N disk-one-blade "
+                        "solves (beyond the paper; about N × 0.15 s per joint and input; default: %(default)s; "
+                        "0: the k-NN's pattern, as the paper)")
+    p.add_argument("--workers", type=int, default=d.workers, help="worker processes of the stage runner, each "
+                   "single-threaded (default: %(default)s)")
+    p.add_argument("--dask-workers", type=int, default=None, metavar="N",
+                   help="build the dataset on a local Dask cluster of N worker processes (default: in a worker)")
+
+
+def stage_options(args, *, scheduler: str | None = None) -> RunOptions:
+    """The :class:`RunOptions` of parsed flags; one-line :class:`ValueError` for a value out of range."""
+    for name, v, ok, expected in (
+            ("--n", args.n, args.n >= 2, "an integer ≥ 2"), ("--scale", args.scale, args.scale > 0, "a positive value"),
+            ("--step", args.step, args.step > 0, "a positive value"),
+            ("--features", args.features, args.features >= 1, "a positive integer"),
+            ("--workers", args.workers, args.workers >= 1, "a positive integer"),
+            ("--refine", args.refine, args.refine >= 0, "an integer ≥ 0"),
+            ("--dask-workers", args.dask_workers, args.dask_workers is None or args.dask_workers >= 1,
+             "a positive integer")):
+        if not ok:
+            raise ValueError(f"{name} {v}: expected {expected}")
+    return RunOptions(cache_dir=Path(args.cache_dir) if args.cache_dir else None, n_patterns=args.n,
+                      scale=args.scale, seed=args.seed, step_pct=args.step, n_features=args.features,
+                      bias=not args.no_bias, workers=args.workers, dask_workers=args.dask_workers,
+                      scheduler=scheduler, refine=args.refine)
