@@ -30,3 +30,12 @@ def test_python_dash_m_bladetwin_runs_the_command_line():
     bad = subprocess.run([sys.executable, "-m", "bladetwin", "no-such-command"], capture_output=True, text=True,
                          timeout=120)
     assert bad.returncode == 2 and "invalid choice" in bad.stderr
+
+
+@pytest.mark.parametrize("name", ["rom", "ema", "bladetwin", "identify", "lab", "bladetwin.stages"])
+def test_every_name_in_all_resolves(name):
+    import importlib
+
+    mod = importlib.import_module(name)
+    missing = [n for n in mod.__all__ if not hasattr(mod, n)]
+    assert not missing, f"{name}.__all__ names what it does not have: {missing}"

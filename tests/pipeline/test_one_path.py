@@ -149,3 +149,18 @@ def test_several_campaigns_of_one_disk_share_its_models_and_get_an_index(camp, t
     _run(camp, [camp / "second"], tmp_path / "alone", capsys)
     alone = json.loads((tmp_path / "alone" / "summary.json").read_text())
     assert alone["cases"] == summaries[1]["cases"] and alone["joints"] == summaries[1]["joints"]
+
+
+def test_scheduler_sends_each_campaign_graph_to_a_dask_cluster(camp, tmp_path, capsys):
+    distributed = pytest.importorskip("distributed")
+    _run(camp, [camp / "first"], tmp_path / "local", capsys)
+    with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=False, dashboard_address=None) as c:
+        capsys.readouterr()
+        assert main(["run", str(camp / "first"), str(camp / "second"), *SETTINGS, "--out", str(tmp_path / "dask"),
+                     "--cache-dir", str(camp / "store"), "--scheduler", c.scheduler_address]) == 0
+    err = capsys.readouterr().err
+    assert "Dask scheduler" in err
+    local = json.loads((tmp_path / "local" / "summary.json").read_text())
+    remote = json.loads((tmp_path / "dask" / "first" / "summary.json").read_text())
+    assert remote["cases"] == local["cases"] and remote["joints"] == local["joints"]
+    assert (tmp_path / "dask" / "index.html").is_file()
