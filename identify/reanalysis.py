@@ -217,6 +217,62 @@ def _krylov_basis(K, M, Uf, E, block, n_wanted, min_blocks, max_blocks, sigma, t
     raise AssertionError("unreachable")  # pragma: no cover
 
 
+def _check_ritz_inputs(K, M, update_index, omega2, method: str, block: int) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`ritz_model`'s checks; returns the update coordinates (int64) and their tuned ω² (float64)."""
+    n = K.shape[0]
+    if K.shape != (n, n) or M.shape != (n, n):
+        raise ValueError(f"K and M must be square and of equal shape, got {K.shape} and {M.shape}")
+    idx = np.asarray(update_index, dtype=np.int64).ravel()
+    w2 = np.asarray(omega2, dtype=np.float64).ravel()
+    k = idx.size
+    if w2.size != k or k == 0 or idx.min() < 0 or idx.max() >= n or np.unique(idx).size != k:
+        raise ValueError(f"update_index must be {w2.size} distinct coordinates in 0..{n - 1}, got {idx.tolist()}")
+    if method not in ("auto", "krylov", "eigh"):
+        raise ValueError(f"method must be 'auto', 'krylov' or 'eigh', got {method!r}")
+    if block <= k:
+        raise ValueError(f"block must exceed the update rank {k}, got {block}")
+    return idx, w2
+
+
+def _eigh_basis(K: np.ndarray, M: np.ndarray) -> tuple[np.ndarray, ...]:
+    """Every mode of the pencil by dense ``eigh``: (θ, Y, K Y, M Y)."""
+    theta, Y = sla.eigh(K, M, check_finite=False)
+    return theta, Y, K @ Y, M @ Y
+
+
+def _project(Uf, E, idx, theta, Y, KY, MY, n_low: int, n_top: int, n_poles: int):
+    """Steps 2–3 of the module docstring: the low Ritz vectors kept, the far ones compressed to pole blocks.
+
+    ``n_top`` is the number of Ritz values up to the last wanted mode (rigid ones included). Returns the
+    projected stiffness ``H0`` (s, s), the update rows ``U`` (s, k), the residual factor ``R`` and ``S½``.
+    """
+    Ur = Y[idx, :].T  # (r, k)
+    # Pole blocks of the far Ritz vectors, poles spread over [0, 1.1 λ_max] of the wanted band.
+    F = np.arange(n_low, theta.size)
+    lam_top = 1.1 * theta[n_top - 1]
+    taus = np.linspace(0.0, lam_top, n_poles) if n_poles > 1 else np.array([0.5 * lam_top])
+    blocks = np.hstack([Ur[F] / (theta[F] - t)[:, None] for t in taus])
+    QF, RF = np.linalg.qr(blocks)
+    # Drop directions the far space cannot hold (a far set narrower than the pole blocks).
+    keep = np.abs(np.diag(RF)) > 1e-12 * max(np.abs(np.diag(RF)).max(initial=0.0), 1e-300)
+    QF = QF[:, keep]
+    s = n_low + QF.shape[1]
+    H0 = np.zeros((s, s))
+    H0[np.arange(n_low), np.arange(n_low)] = theta[:n_low]
+    Hf = (QF.T * theta[F]) @ QF
+    H0[n_low:, n_low:] = 0.5 * (Hf + Hf.T)
+    Uz = np.vstack([Ur[:n_low], QF.T @ Ur[F]])
+    KYz = np.hstack([KY[:, :n_low], KY[:, F] @ QF])
+    MYz = np.hstack([MY[:, :n_low], MY[:, F] @ QF])
+    G = sla.solve_triangular(Uf, np.hstack([KYz, MYz, E]), trans="T", check_finite=False)
+    R = np.linalg.qr(G, mode="r")
+    CE = dpotrs(Uf, E, lower=0)[0]
+    S = CE[idx]
+    ev, evec = np.linalg.eigh(0.5 * (S + S.T))
+    S_half = (evec * np.sqrt(np.clip(ev, 0.0, None))) @ evec.T
+    return H0, Uz, R, S_half
+
+
 def ritz_model(
     K: np.ndarray,
     M: np.ndarray,
@@ -274,63 +330,24 @@ def ritz_model(
     -------
     RitzModel
     """
-    n = K.shape[0]
-    if K.shape != (n, n) or M.shape != (n, n):
-        raise ValueError(f"K and M must be square and of equal shape, got {K.shape} and {M.shape}")
-    idx = np.asarray(update_index, dtype=np.int64).ravel()
-    w2 = np.asarray(omega2, dtype=np.float64).ravel()
-    k = idx.size
-    if w2.size != k or k == 0 or idx.min() < 0 or idx.max() >= n or np.unique(idx).size != k:
-        raise ValueError(f"update_index must be {w2.size} distinct coordinates in 0..{n - 1}, got {idx.tolist()}")
-    if method not in ("auto", "krylov", "eigh"):
-        raise ValueError(f"method must be 'auto', 'krylov' or 'eigh', got {method!r}")
-    if block <= k:
-        raise ValueError(f"block must exceed the update rank {k}, got {block}")
-    sigma = -((2 * math.pi * shift_hz) ** 2)
-    rigid_lam = (2 * math.pi * rigid_hz) ** 2
+    n, (idx, w2) = K.shape[0], _check_ritz_inputs(K, M, update_index, omega2, method, block)
+    sigma, rigid_lam = -((2 * math.pi * shift_hz) ** 2), (2 * math.pi * rigid_hz) ** 2
     n_low = max_rigid + n_cand + n_buffer
     if method == "auto":
         method = "krylov" if n >= _KRYLOV_MIN_N and max_blocks * block <= n // 2 else "eigh"
-    E = np.zeros((n, k))
-    E[idx, np.arange(k)] = 1.0
+    E = np.zeros((n, idx.size))
+    E[idx, np.arange(idx.size)] = 1.0
     with single_thread_blas():
         Uf = _cholesky_shifted(K, M, sigma)
-        if method == "krylov":
-            n_check = n_cand if n_check is None else min(int(n_check), n_cand)
-            theta, Y, KY, MY = _krylov_basis(K, M, Uf, E, block, n_check, min_blocks, max_blocks, sigma, basis_tol,
-                                             rigid_lam, max_rigid, seed)
-        else:
-            theta, Y = sla.eigh(K, M, check_finite=False)
-            KY, MY = K @ Y, M @ Y
+        n_check = n_cand if n_check is None else min(int(n_check), n_cand)
+        theta, Y, KY, MY = (_krylov_basis(K, M, Uf, E, block, n_check, min_blocks, max_blocks, sigma, basis_tol,
+                                          rigid_lam, max_rigid, seed) if method == "krylov" else _eigh_basis(K, M))
         r = theta.size
         if n_low + 1 > r:
             raise ValueError(f"the Ritz basis ({r} vectors) is too small for {n_cand} modes and {n_buffer} spare")
         n_rigid = int(((theta < rigid_lam) & (np.arange(r) < max_rigid)).sum())
-        Ur = Y[idx, :].T  # (r, k)
-        # Pole blocks of the far Ritz vectors, poles spread over [0, 1.1 λ_max] of the wanted band.
-        F = np.arange(n_low, r)
-        lam_top = 1.1 * theta[n_rigid + n_cand - 1]
-        taus = np.linspace(0.0, lam_top, n_poles) if n_poles > 1 else np.array([0.5 * lam_top])
-        blocks = np.hstack([Ur[F] / (theta[F] - t)[:, None] for t in taus])
-        QF, RF = np.linalg.qr(blocks)
-        # Drop directions the far space cannot hold (a far set narrower than the pole blocks).
-        keep = np.abs(np.diag(RF)) > 1e-12 * max(np.abs(np.diag(RF)).max(initial=0.0), 1e-300)
-        QF = QF[:, keep]
-        s = n_low + QF.shape[1]
-        H0 = np.zeros((s, s))
-        H0[np.arange(n_low), np.arange(n_low)] = theta[:n_low]
-        Hf = (QF.T * theta[F]) @ QF
-        H0[n_low:, n_low:] = 0.5 * (Hf + Hf.T)
-        Uz = np.vstack([Ur[:n_low], QF.T @ Ur[F]])
-        KYz = np.hstack([KY[:, :n_low], KY[:, F] @ QF])
-        MYz = np.hstack([MY[:, :n_low], MY[:, F] @ QF])
-        G = sla.solve_triangular(Uf, np.hstack([KYz, MYz, E]), trans="T", check_finite=False)
-        R = np.linalg.qr(G, mode="r")
-        CE = dpotrs(Uf, E, lower=0)[0]
-        S = CE[idx]
-        ev, evec = np.linalg.eigh(0.5 * (S + S.T))
-        S_half = (evec * np.sqrt(np.clip(ev, 0.0, None))) @ evec.T
-    cand = slice(n_rigid, n_rigid + n_cand)
+        H0, Uz, R, S_half = _project(Uf, E, idx, theta, Y, KY, MY, n_low, n_rigid + n_cand, n_poles)
+    s, cand = H0.shape[0], slice(n_rigid, n_rigid + n_cand)
     res0 = np.linalg.norm(R[:, :s][:, cand] - R[:, s : 2 * s][:, cand] * theta[cand], axis=0)
     bound0 = frequency_error_bound(res0, theta[cand], sigma, np.zeros(()))
     return RitzModel(H0=H0, U=Uz, omega2=w2, R=R, S_half=S_half, sigma=sigma, n_rigid=n_rigid, n_low=n_low,

@@ -28,7 +28,7 @@ from __future__ import annotations
 
 import hashlib
 import numbers
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Protocol
 
 import numpy as np
@@ -198,69 +198,17 @@ def refine_pattern(
     """
     samplers = (sampler_L, sampler_R)
     target, feats = _check(tracker, samplers, target_hz, feature_modes, max_solves, max_sigma, tol_pct)
-    kappa0 = [s.transform(np.asarray(g, np.float64)[None])[0] for s, g in zip(samplers, (start_L, start_R),
-                                                                                strict=True)]
-    k = [len(x) for x in kappa0]
-    sig = [np.where(s.score_std_ > 0, s.score_std_, 1.0) for s in samplers]
-    lev_unit = [_known_std(s) for s in samplers]
-    # Search coordinates: κ_L/σ_L, κ_R/σ_R, then the two level offsets in their units.
-    x = np.concatenate([kappa0[0] / sig[0], kappa0[1] / sig[1], [0.0, 0.0]])
-    step0 = np.concatenate([np.full(k[0] + k[1], KAPPA_STEP), [LEVEL_STEP, LEVEL_STEP]])
+    search = _Search.start(tracker, samplers, target, feats, start_L, start_R, delta, memo, max_solves, max_sigma)
+    x = search.x0
+    step0 = np.concatenate([np.full(sum(search.k), KAPPA_STEP), [LEVEL_STEP, LEVEL_STEP]])
     step = step0.copy()
-    n_nodes = int(np.prod(sampler_L.grid_shape_))
-
-    def decode(x: np.ndarray) -> tuple[np.ndarray, np.ndarray, float, float, np.ndarray, np.ndarray]:
-        kL, kR = x[: k[0]] * sig[0], x[k[0]: k[0] + k[1]] * sig[1]
-        tL = sampler_L.threshold_ + x[-2] * lev_unit[0]
-        tR = sampler_R.threshold_ + x[-1] * lev_unit[1]
-        gL = sampler_L.inverse_transform(kL[None])[0] > tL
-        gR = sampler_R.inverse_transform(kR[None])[0] > tR
-        return kL, kR, float(tL), float(tR), gL, gR
-
-    scores: dict[bytes, float] = {}
-    n_solved = [0]  # direct solves so far (invalid grids cost none)
-    bound = np.maximum(max_sigma, np.abs(x[:-2]))  # a start beyond the bound stays allowed
-
-    def score(x: np.ndarray) -> float:
-        if np.any(np.abs(x[:-2]) > bound):
-            return np.inf
-        *_, gL, gR = decode(x)
-        key = gL.tobytes() + gR.tobytes()
-        if key not in scores:
-            valid = all(0 < g.sum() < n_nodes and _non_collinear(g) for g in (gL, gR))
-            if not valid:
-                scores[key] = np.inf
-            elif n_solved[0] >= max_solves:
-                return np.inf  # out of budget: not scored, not cached
-            else:
-                f = _tracked(tracker, gL, gR, delta, memo)[feats]
-                n_solved[0] += 1
-                scores[key] = float(np.mean(np.abs(f / target - 1)))
-        return scores[key]
-
-    best = score(x)
+    best = search.score(x)
     if not np.isfinite(best):
         raise IdentifyError("the start pair is not a valid contact pattern (empty, full or collinear grid)")
     start = best
-
-    # Rates of (map − level) per unit of each search coordinate, per side: grids change only where a node's
-    # value crosses its level, so every poll goes at least to the next crossing (no poll repeats the grid).
-    comps = (sampler_L.components_, sampler_R.components_)
-    rates = [(0, sig[0][z] * comps[0][z]) for z in range(k[0])]
-    rates += [(1, sig[1][z] * comps[1][z]) for z in range(k[1])]
-    rates += [(0, np.full(n_nodes, -lev_unit[0])), (1, np.full(n_nodes, -lev_unit[1]))]
-
-    while n_solved[0] < max_solves and step.max() >= KAPPA_STEP / 64 and 100 * best > tol_pct:
-        kL, kR, tL, tR, _, _ = decode(x)
-        excess = (sampler_L.inverse_transform(kL[None]).ravel() - tL,
-                  sampler_R.inverse_transform(kR[None]).ravel() - tR)
-        cands = []
-        for z, (side, g) in enumerate(rates):
-            for sign in (1.0, -1.0):
-                c = x.copy()
-                c[z] += sign * max(step[z], _next_crossing(excess[side], sign * g))
-                cands.append(c)
-        vals = [score(c) for c in cands]
+    while search.n_solved < max_solves and step.max() >= KAPPA_STEP / 64 and 100 * best > tol_pct:
+        cands = search.polls(x, step)
+        vals = [search.score(c) for c in cands]
         i = int(np.argmin(vals))
         if vals[i] < best:
             # a successful direction is worth a longer stride next time: far-off joints need long moves
@@ -268,8 +216,89 @@ def refine_pattern(
             step[i // 2] = min(2 * step[i // 2], 4 * step0[i // 2])
         else:
             step = step / 2
-    kL, kR, tL, tR, gL, gR = decode(x)
-    return RefinedPattern(ContactPattern(gL, gR), kL, kR, tL, tR, 100 * best, 100 * start, n_solved[0])
+    kL, kR, tL, tR, gL, gR = search.decode(x)
+    return RefinedPattern(ContactPattern(gL, gR), kL, kR, tL, tR, 100 * best, 100 * start, search.n_solved)
+
+
+@dataclass(eq=False)
+class _Search:
+    """One compass search's state: the family's search coordinates, the grids scored so far, the solve budget.
+
+    Search coordinates: κ_L/σ_L, κ_R/σ_R, then the two level offsets in their units (of the known maps' spread).
+    """
+
+    tracker: ModeTracker
+    samplers: tuple
+    target: np.ndarray
+    feats: list
+    delta: object
+    memo: object
+    max_solves: int
+    k: tuple[int, int]
+    sig: tuple[np.ndarray, np.ndarray]
+    lev_unit: tuple[float, float]
+    x0: np.ndarray
+    bound: np.ndarray
+    n_nodes: int
+    scores: dict = field(default_factory=dict)
+    n_solved: int = 0  # direct solves so far (invalid grids cost none)
+
+    @classmethod
+    def start(cls, tracker, samplers, target, feats, start_L, start_R, delta, memo, max_solves, max_sigma):
+        kappa0 = [s.transform(np.asarray(g, np.float64)[None])[0] for s, g in zip(samplers, (start_L, start_R),
+                                                                                    strict=True)]
+        k = (len(kappa0[0]), len(kappa0[1]))
+        sig = tuple(np.where(s.score_std_ > 0, s.score_std_, 1.0) for s in samplers)
+        lev_unit = tuple(_known_std(s) for s in samplers)
+        x = np.concatenate([kappa0[0] / sig[0], kappa0[1] / sig[1], [0.0, 0.0]])
+        bound = np.maximum(max_sigma, np.abs(x[:-2]))  # a start beyond the bound stays allowed
+        return cls(tracker, samplers, target, feats, delta, memo, max_solves, k, sig, lev_unit, x, bound,
+                   int(np.prod(samplers[0].grid_shape_)))
+
+    def decode(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, float, float, np.ndarray, np.ndarray]:
+        (sL, sR), k = self.samplers, self.k
+        kL, kR = x[: k[0]] * self.sig[0], x[k[0]: k[0] + k[1]] * self.sig[1]
+        tL = sL.threshold_ + x[-2] * self.lev_unit[0]
+        tR = sR.threshold_ + x[-1] * self.lev_unit[1]
+        gL = sL.inverse_transform(kL[None])[0] > tL
+        gR = sR.inverse_transform(kR[None])[0] > tR
+        return kL, kR, float(tL), float(tR), gL, gR
+
+    def score(self, x: np.ndarray) -> float:
+        """Mean relative feature error of the grids at ``x``; inf for an invalid grid or past the budget."""
+        if np.any(np.abs(x[:-2]) > self.bound):
+            return np.inf
+        *_, gL, gR = self.decode(x)
+        key = gL.tobytes() + gR.tobytes()
+        if key not in self.scores:
+            valid = all(0 < g.sum() < self.n_nodes and _non_collinear(g) for g in (gL, gR))
+            if not valid:
+                self.scores[key] = np.inf
+            elif self.n_solved >= self.max_solves:
+                return np.inf  # out of budget: not scored, not cached
+            else:
+                f = _tracked(self.tracker, gL, gR, self.delta, self.memo)[self.feats]
+                self.n_solved += 1
+                self.scores[key] = float(np.mean(np.abs(f / self.target - 1)))
+        return self.scores[key]
+
+    def polls(self, x: np.ndarray, step: np.ndarray) -> list[np.ndarray]:
+        """Both directions along every coordinate, each at least to the next grid change."""
+        # Rates of (map − level) per unit of each search coordinate, per side: grids change only where a node's
+        # value crosses its level, so every poll goes at least to the next crossing (no poll repeats the grid).
+        (sL, sR), k, sig = self.samplers, self.k, self.sig
+        rates = [(0, sig[0][z] * sL.components_[z]) for z in range(k[0])]
+        rates += [(1, sig[1][z] * sR.components_[z]) for z in range(k[1])]
+        rates += [(0, np.full(self.n_nodes, -self.lev_unit[0])), (1, np.full(self.n_nodes, -self.lev_unit[1]))]
+        kL, kR, tL, tR, _, _ = self.decode(x)
+        excess = (sL.inverse_transform(kL[None]).ravel() - tL, sR.inverse_transform(kR[None]).ravel() - tR)
+        cands = []
+        for z, (side, g) in enumerate(rates):
+            for sign in (1.0, -1.0):
+                c = x.copy()
+                c[z] += sign * max(step[z], _next_crossing(excess[side], sign * g))
+                cands.append(c)
+        return cands
 
 
 def _tracked(tracker: ModeTracker, gL: np.ndarray, gR: np.ndarray, delta,

@@ -378,21 +378,14 @@ def sensitivity(
     """
     _check_formulation(formulation)
     grid = _grid(blade)
-    PL = check_patterns(patterns_L, "patterns_L", grid)
-    PR = check_patterns(patterns_R, "patterns_R", grid)
-    if not isinstance(n_modes, (int, np.integer)) or n_modes < 1:
-        raise IdentifyError(f"n_modes={n_modes!r}: expected an integer ≥ 1")
-    if not isinstance(n_extra, (int, np.integer)) or n_extra < 0:
-        raise IdentifyError(f"n_extra={n_extra!r}: expected an integer ≥ 0")
+    PL, PR = check_patterns(patterns_L, "patterns_L", grid), check_patterns(patterns_R, "patterns_R", grid)
+    n_cand = _check_counts(n_modes, n_extra)
     ref = _check_reference(reference, PL, PR)
-    n_cand = n_modes + n_extra
-    pairs = [(i, j) for i in range(len(PL)) for j in range(len(PR))]
-    pairs.remove(ref)
-    freq = np.empty((len(PL), len(PR), n_modes))
+    freq, mac = np.empty((len(PL), len(PR), n_modes)), np.empty((len(PL), len(PR), n_modes))
     index = np.empty((len(PL), len(PR), n_modes), np.int64)
-    mac = np.empty((len(PL), len(PR), n_modes))
     W = ref_shapes = common = None
-    for i, j in tqdm([ref, *pairs], desc="sensitivity", unit="pair", file=sys.stderr, disable=not progress):
+    order = [ref] + [(i, j) for i in range(len(PL)) for j in range(len(PR)) if (i, j) != ref]  # reference first
+    for i, j in tqdm(order, desc="sensitivity", unit="pair", file=sys.stderr, disable=not progress):
         K, M = _pencil_checked(disk, blade, PL[i], PR[j], i, j, formulation)
         with single_thread_blas():  # small dense products: one thread (see d1b_pencil)
             dm = dense_modes(K, M, n_cand, max_rigid=6)
@@ -412,6 +405,15 @@ def sensitivity(
                        reference=ref, mode_index=index, mac=mac, patterns_L=PL, patterns_R=PR,
                        model_key=model_key(disk, blade, formulation),
                        meta={"formulation": formulation, "n_extra": int(n_extra)})
+
+
+def _check_counts(n_modes, n_extra) -> int:
+    """Checks the tracked and extra mode counts; returns the candidates per pair, their sum."""
+    if not isinstance(n_modes, (int, np.integer)) or n_modes < 1:
+        raise IdentifyError(f"n_modes={n_modes!r}: expected an integer ≥ 1")
+    if not isinstance(n_extra, (int, np.integer)) or n_extra < 0:
+        raise IdentifyError(f"n_extra={n_extra!r}: expected an integer ≥ 0")
+    return int(n_modes + n_extra)
 
 
 def _check_reference(reference, PL: np.ndarray, PR: np.ndarray) -> tuple[int, int]:
