@@ -201,8 +201,7 @@ def imported_model_table(model: dict, root: Path, where: str) -> tuple[dict, Pat
         return {k: v for k, v in model.items() if k != "family"}, root, where
     rest = sorted(set(model) - {"family", "file"})
     if rest:
-        raise CampaignError(f"{where}: [model] file = {model['file']!r} names the model; {rest} belong in that "
-                            "file")
+        raise CampaignError(f"{where}: [model] file = {model['file']!r} names the model; {rest} belong in that file")
     rel = model["file"]
     if not isinstance(rel, str) or not rel:
         raise CampaignError(f"{where}: [model] file = {rel!r}, expected a path relative to the campaign folder")
@@ -251,10 +250,9 @@ def _check_model(model: dict, root: Path, n_blades: int, grid: tuple[int, int], 
         return
     # The twin is built with the [model] values; a count or grid other than the campaign's would give an ROM
     # whose slots or contact nodes do not match the tests and films.
-    if "n_blades" in model and model["n_blades"] != n_blades:
-        raise CampaignError(f"{where}: n_blades = {model['n_blades']!r}, but [campaign] n_blades = {n_blades}")
-    if "grid" in model and model["grid"] != list(grid):
-        raise CampaignError(f"{where}: grid = {model['grid']!r}, but [campaign] grid = {list(grid)}")
+    for key, value in (("n_blades", n_blades), ("grid", list(grid))):
+        if key in model and model[key] != value:
+            raise CampaignError(f"{where}: {key} = {model[key]!r}, but [campaign] {key} = {value}")
 
 
 def read_campaign(folder: str | Path) -> Campaign:
@@ -295,37 +293,8 @@ def read_campaign(folder: str | Path) -> Campaign:
     if not isinstance(model, dict):
         raise CampaignError(f"{path}: [model] must be a table")
     _check_model(model, root, n_blades, grid, path)
-    tests = []
-    seen: dict[tuple, int] = {}
-    for k, t in enumerate(_need(doc, "tests", str(path), list)):
-        w = f"{path} tests[{k}]"
-        if not isinstance(t, dict):
-            raise CampaignError(f"{w}: expected a table")
-        kind = _need(t, "type", w, str)
-        if kind not in TEST_TYPES:
-            raise CampaignError(f"{w}: type = {kind!r}, expected one of {', '.join(TEST_TYPES)}")
-        index = None
-        if kind in ("blade", "d1b"):
-            key = "blade" if kind == "blade" else "joint"
-            index = _need(t, key, w, int)
-            if not 1 <= index <= n_blades:
-                raise CampaignError(f"{w}: {key} = {index}, expected 1..{n_blades}")
-        # One test per blade, per joint, one disk and one assembly: a second one is a manifest mistake that
-        # would otherwise silently replace the first.
-        if (kind, index) in seen:
-            what = {"blade": f"blade {index}", "d1b": f"joint {index}"}.get(kind, f"the {kind}")
-            raise CampaignError(f"{w}: {what} is named twice (also tests[{seen[kind, index]}])")
-        seen[kind, index] = k
-        order = t.get("max_order", 60)
-        if not isinstance(order, int) or isinstance(order, bool) or order < 2:
-            raise CampaignError(f"{w}: max_order = {order!r}, expected an integer ≥ 2")
-        picks = t.get("picks")
-        units = t.get("units", default_units)
-        if units is not None and not isinstance(units, str):
-            raise CampaignError(f"{w}: units = {units!r}, expected a unit label such as 'm/s/N'")
-        tests.append(TestEntry(kind, _file(root, t.get("file"), w), index, order,
-                               None if picks is None else _file(root, picks, f"{w} picks"), units))
-    films = []
+    tests = _read_tests(doc, path, root, n_blades, default_units)
+    films: dict[tuple[int, str], FilmEntry] = {}
     for k, f in enumerate(doc.get("films", [])):
         w = f"{path} films[{k}]"
         if not isinstance(f, dict):
@@ -335,16 +304,45 @@ def read_campaign(folder: str | Path) -> Campaign:
         if not 1 <= joint <= n_blades or flank not in ("L", "R"):
             raise CampaignError(f"{w}: joint {joint!r} flank {flank!r}, expected 1..{n_blades} and L or R")
         meta = {key: v for key, v in f.items() if key not in ("joint", "flank", "file")}
-        if any(g.joint == joint and g.flank == flank for g in films):
+        if (joint, flank) in films:
             raise CampaignError(f"{w}: joint {joint} flank {flank} is named twice")
-        films.append(FilmEntry(joint, flank, _file(root, f.get("file"), w), meta))
-    have = {(f.joint, f.flank) for f in films}
-    for j in known:
-        for flank in ("L", "R"):
-            if (j, flank) not in have:
-                raise CampaignError(f"{path}: known joint {j} has no film for flank {flank}")
+        films[joint, flank] = FilmEntry(joint, flank, _file(root, f.get("file"), w), meta)
+    missing = [(j, flank) for j in known for flank in ("L", "R") if (j, flank) not in films]
+    if missing:
+        raise CampaignError(f"{path}: known joint {missing[0][0]} has no film for flank {missing[0][1]}")
     return Campaign(root.resolve(), str(head.get("name", root.name)), str(head.get("kind", "lab")), n_blades, grid,
-                    tuple(int(k) for k in known), dict(model), tuple(tests), tuple(films))
+                    tuple(int(k) for k in known), dict(model), tuple(tests), tuple(films.values()))
+
+
+def _read_tests(doc: dict, path: Path, root: Path, n_blades: int, default_units: str | None) -> list[TestEntry]:
+    """The checked ``tests`` of the manifest ``path``: one per blade, per joint, one disk and one assembly (a
+    second one is a manifest mistake that would otherwise silently replace the first)."""
+    tests: list[TestEntry] = []
+    seen: dict[tuple, int] = {}
+    for k, t in enumerate(_need(doc, "tests", str(path), list)):
+        w = f"{path} tests[{k}]"
+        if not isinstance(t, dict):
+            raise CampaignError(f"{w}: expected a table")
+        kind = _need(t, "type", w, str)
+        if kind not in TEST_TYPES:
+            raise CampaignError(f"{w}: type = {kind!r}, expected one of {', '.join(TEST_TYPES)}")
+        key = {"blade": "blade", "d1b": "joint"}.get(kind)  # the field naming the test's blade or joint
+        index = None if key is None else _need(t, key, w, int)
+        if key is not None and not 1 <= index <= n_blades:
+            raise CampaignError(f"{w}: {key} = {index}, expected 1..{n_blades}")
+        if (kind, index) in seen:
+            what = f"the {kind}" if key is None else f"{key} {index}"
+            raise CampaignError(f"{w}: {what} is named twice (also tests[{seen[kind, index]}])")
+        seen[kind, index] = k
+        order = t.get("max_order", 60)
+        if not isinstance(order, int) or isinstance(order, bool) or order < 2:
+            raise CampaignError(f"{w}: max_order = {order!r}, expected an integer ≥ 2")
+        units = t.get("units", default_units)
+        if units is not None and not isinstance(units, str):
+            raise CampaignError(f"{w}: units = {units!r}, expected a unit label such as 'm/s/N'")
+        tests.append(TestEntry(kind, _file(root, t.get("file"), w), index, order,
+                               None if t.get("picks") is None else _file(root, t["picks"], f"{w} picks"), units))
+    return tests
 
 
 _JOINT_IN_NAME = re.compile(r"joint[_\- ]?0*(\d+)", re.IGNORECASE)
@@ -396,9 +394,7 @@ def check_files(campaign: Campaign, say=lambda msg: None) -> None:
             ema.load_picks(t.picks)
     for f in campaign.films:
         joint, flank, source = _film_identity(f.file)
-        if joint is not None and joint != f.joint:
-            raise CampaignError(f"{manifest} films: {f.file.name} is a film of joint {joint} ({source}), but the "
-                                f"manifest gives it to joint {f.joint}")
-        if flank is not None and flank != f.flank:
-            raise CampaignError(f"{manifest} films: {f.file.name} is a film of flank {flank} ({source}), but the "
-                                f"manifest gives it to flank {f.flank}")
+        for what, said, given in (("joint", joint, f.joint), ("flank", flank, f.flank)):
+            if said is not None and said != given:
+                raise CampaignError(f"{manifest} films: {f.file.name} is a film of {what} {said} ({source}), but the "
+                                    f"manifest gives it to {what} {given}")

@@ -42,6 +42,11 @@ def main(argv: list[str] | None = None) -> int:
         # (ValueError subclasses) with messages written for users; the others come from the OS or numpy.
         print(f"bladetwin: error: {error_message(exc)}", file=sys.stderr)
         return 2
+    except KeyboardInterrupt:
+        # every finished stage is in the store (atomic entries): the same command resumes from there
+        print("bladetwin: interrupted; run the same command again to resume from the stages already stored",
+              file=sys.stderr)
+        return 130
 
 
 def error_message(exc: BaseException) -> str:

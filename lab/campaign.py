@@ -228,45 +228,82 @@ def simulate_campaign(
 
 
 def _write(spec: CampaignSpec, params: AcademicParams, known: tuple[int, ...], root: Path, say) -> int:
-    rng = np.random.default_rng(spec.seed)
-    # Independent streams per purpose, so that changing one part (say, the film grain) leaves the others.
-    rng_pressure, rng_truth, rng_damping, rng_noise, rng_film = rng.spawn(5)
-    say(f"academic twin, level {params.level}, {params.n_blades} blades, grid {params.grid[0]}x{params.grid[1]}")
-    bd = build_bladed_disk(params)
-    u, v = flank_coordinates(bd)
-    pressure = simulate_pressure(u, v, params.n_blades, rng_pressure, spec.pressure)
-    patterns = pressure.patterns()
-    twin = make_truth_twin(bd, patterns, rng_truth, spec.truth)
-    manifest: dict = {
-        "campaign": {"name": spec.name, "kind": "virtual", "n_blades": params.n_blades, "grid": list(params.grid),
-                     "known_joints": list(known), "generated_by": spec.command(f"measurements/{spec.name}"),
-                     # what every UFF of the rig holds; `bladetwin run` checks each file against it
-                     "frf_units": "m/s/N"},
-        "model": {"family": "academic", "level": params.level, "n_blades": params.n_blades,
-                  "grid": list(params.grid)},
-        "tests": [],
-        "films": [],
-    }
-    truth: dict = {"seed": spec.seed, "n_blades": params.n_blades, "grid": list(params.grid),
-                   "known_joints": list(known),
-                   "truth_params": _jsonable(spec.truth), "blade_variations": [v.to_dict() for v in twin.variations],
-                   "contact_fraction_pct": {"L": (100 * pressure.fractions[:, 0]).tolist(),
-                                            "R": (100 * pressure.fractions[:, 1]).tolist()}}
-    n_files = 0
-    presolved: dict = {}
-    workers = max(1, min(2, os.cpu_count() or 1))
+    """Simulate the campaign into ``root``: every test, the film scans, the manifest and the truth files."""
+    writer = _CampaignWriter(spec, params, known, root, say)
+    writer.component_tests()
+    writer.assembly_test()
+    writer.films()
+    return writer.finish()
 
-    def run_test(kind: str, rel: str, slots, with_disk: bool, n_wanted: int, inputs_of, families: int = 0) -> dict:
+
+#: The per-test truth entries, each a mapping {"blades": [...], "disk": ..., "d1b": [...], "assembly": ...}.
+_TRUTH_TEST_KEYS = ("frequencies_hz", "damping_ratios", "all_frequencies_hz", "band_hz")
+
+
+def _blade_tip(labels) -> list[int]:
+    return [k for k, lab in enumerate(labels) if lab[0] == "blade" and lab[2] == 3][:1]
+
+
+def _disk_first(labels) -> list[int]:
+    return [k for k, lab in enumerate(labels) if lab[0] == "disk"][:1]
+
+
+def _spread_tips(labels) -> list[int]:
+    # Hammer on the tips of FULL_INPUTS blades spread round the disk: mistuned modes localise on a few
+    # blades, and one reference would miss the rest.
+    tips = [k for k, lab in enumerate(labels) if lab[0] == "blade" and lab[2] == 3]
+    pick = np.unique(np.round(np.linspace(0, len(tips), FULL_INPUTS, endpoint=False)).astype(int))
+    return [tips[i] for i in pick]
+
+
+class _CampaignWriter:
+    """One campaign being written into ``root``: the truth twin, its random streams, and the manifest and truth
+    documents as the tests and films fill them in (always in the same order, so a seed gives the same files)."""
+
+    def __init__(self, spec: CampaignSpec, params: AcademicParams, known: tuple[int, ...], root: Path, say):
+        self.spec, self.params, self.known, self.root, self.say = spec, params, known, root, say
+        rng = np.random.default_rng(spec.seed)
+        # Independent streams per purpose, so that changing one part (say, the film grain) leaves the others.
+        rng_pressure, rng_truth, self.rng_damping, self.rng_noise, self.rng_film = rng.spawn(5)
+        say(f"academic twin, level {params.level}, {params.n_blades} blades, grid {params.grid[0]}x{params.grid[1]}")
+        bd = build_bladed_disk(params)
+        u, v = flank_coordinates(bd)
+        self.pressure = simulate_pressure(u, v, params.n_blades, rng_pressure, spec.pressure)
+        self.patterns = self.pressure.patterns()
+        self.twin = make_truth_twin(bd, self.patterns, rng_truth, spec.truth)
+        self.manifest: dict = {
+            "campaign": {"name": spec.name, "kind": "virtual", "n_blades": params.n_blades, "grid": list(params.grid),
+                         "known_joints": list(known), "generated_by": spec.command(f"measurements/{spec.name}"),
+                         # what every UFF of the rig holds; `bladetwin run` checks each file against it
+                         "frf_units": "m/s/N"},
+            "model": {"family": "academic", "level": params.level, "n_blades": params.n_blades,
+                      "grid": list(params.grid)},
+            "tests": [],
+            "films": [],
+        }
+        pressure = self.pressure
+        self.truth: dict = {"seed": spec.seed, "n_blades": params.n_blades, "grid": list(params.grid),
+                            "known_joints": list(known), "truth_params": _jsonable(spec.truth),
+                            "blade_variations": [v.to_dict() for v in self.twin.variations],
+                            "contact_fraction_pct": {"L": (100 * pressure.fractions[:, 0]).tolist(),
+                                                     "R": (100 * pressure.fractions[:, 1]).tolist()}}
+        for key in _TRUTH_TEST_KEYS:
+            self.truth[key] = {"blades": [], "disk": None, "d1b": [], "assembly": None}
+        self.n_files = 0
+        self.presolved: dict = {}
+        self.workers = max(1, min(2, os.cpu_count() or 1))
+
+    def run_test(self, kind: str, rel: str, slots, with_disk: bool, n_wanted: int, inputs_of,
+                 families: int = 0) -> dict:
         """One test; ``families`` > 0: the band covers that many blade-mode families (n_blades modes each)."""
-        nonlocal n_files
-        max_lines = spec.max_lines[kind]
+        max_lines = self.spec.max_lines[kind]
         # Compute past the modes of interest: invisible (in-plane) modes interleave with them, and the modes
         # above the band leave their residual effect at its upper edge.
         key = (kind, tuple(slots) if slots is not None else None)
-        if key in presolved:
-            meas_labels, modes = presolved.pop(key)
+        if key in self.presolved:
+            meas_labels, modes = self.presolved.pop(key)
         else:
-            meas_labels, modes = _solve_one_with(twin, slots, with_disk, n_wanted + n_wanted // 2 + 6)
+            meas_labels, modes = _solve_one_with(self.twin, slots, with_disk, n_wanted + n_wanted // 2 + 6)
         if not with_disk:
             # A free blade's points carry the same labels on every blade (nodes 1..3): one test rig, many blades.
             modes = replace(modes, meas_labels=[("blade", 0, p, d) for _, _, p, d in modes.meas_labels])
@@ -274,20 +311,20 @@ def _write(spec: CampaignSpec, params: AcademicParams, known: tuple[int, ...], r
         inputs = inputs_of(meas_labels)
         modes = canonical_degenerate(modes, inputs)
         f = modes.frequencies_hz
-        zeta = damping_ratios(f.size, rng_damping, spec.truth.damping_range)
+        zeta = damping_ratios(f.size, self.rng_damping, self.spec.truth.damping_range)
         # Band from the modes a test can see: first a generous one, then the first n_wanted visible modes.
         snr = peak_snr(modes, zeta, _setup(f[0], f[-1], max_lines), outputs, inputs)
         seen = np.flatnonzero(snr >= MIN_SNR)
         if families:
             blade_modes = np.flatnonzero(modes.blade_energy > 0.5)
-            last = blade_modes[min(families * params.n_blades, blade_modes.size) - 1]
+            last = blade_modes[min(families * self.params.n_blades, blade_modes.size) - 1]
             seen = seen[f[seen] <= f[last]]
         else:
             seen = seen[:n_wanted]
         setup = _setup(f[seen[0]], f[seen[-1]], max_lines, f[seen])
-        frf = measure(modes, zeta, setup, rng_noise, inputs, outputs)
-        write_frfs(root / rel, frf, id1=f"bladetwin lab {kind}", precision="single")
-        n_files += 1
+        frf = measure(modes, zeta, setup, self.rng_noise, inputs, outputs)
+        write_frfs(self.root / rel, frf, id1=f"bladetwin lab {kind}", precision="single")
+        self.n_files += 1
         lo, hi = setup.band_hz
         snr = peak_snr(modes, zeta, setup, outputs, inputs)
         in_band = (f >= lo) & (f <= hi)
@@ -299,88 +336,86 @@ def _write(spec: CampaignSpec, params: AcademicParams, known: tuple[int, ...], r
             result["nodal_diameters"] = nodal_diameters(modes.meas_shapes[disk_rows][:, visible]).tolist()
         return result
 
-    def blade_tip(labels) -> list[int]:
-        return [k for k, lab in enumerate(labels) if lab[0] == "blade" and lab[2] == 3][:1]
-
-    def disk_first(labels) -> list[int]:
-        return [k for k, lab in enumerate(labels) if lab[0] == "disk"][:1]
-
-    def tip_and_disk(labels) -> list[int]:
-        # The blade tip, and the disk point of the next sector: a disk mode whose nodal line runs through the
-        # blade's slot barely moves the blade, and a second hammer off that line excites it.
-        tip = blade_tip(labels)
+    def tip_and_disk(self, labels) -> list[int]:
+        """The blade tip, and the disk point of the next sector: a disk mode whose nodal line runs through the
+        blade's slot barely moves the blade, and a second hammer off that line excites it."""
+        tip = _blade_tip(labels)
         slot = labels[tip[0]][1]
-        sector = slot % params.n_blades + 1
+        sector = slot % self.params.n_blades + 1
         return tip + [k for k, lab in enumerate(labels) if lab[0] == "disk" and lab[1] == sector][:1]
 
-    keys = ("frequencies_hz", "damping_ratios", "all_frequencies_hz", "band_hz")
-    for key in keys:
-        truth[key] = {"blades": [], "disk": None, "d1b": [], "assembly": None}
-
-    def record(group: str, result: dict) -> None:
-        for key in keys:
-            if isinstance(truth[key][group], list):
-                truth[key][group].append(result[key])
+    def record(self, group: str, result: dict) -> None:
+        """Add one test's result to the truth entries of its group (a list per blade or joint, else one value)."""
+        for key in _TRUTH_TEST_KEYS:
+            if isinstance(self.truth[key][group], list):
+                self.truth[key][group].append(result[key])
             else:
-                truth[key][group] = result[key]
+                self.truth[key][group] = result[key]
 
-    def per_slot(kind: str, group: str, folder: str, stem: str, key: str, with_disk: bool, n_wanted: int) -> None:
+    def per_slot(self, kind: str, group: str, folder: str, stem: str, key: str, with_disk: bool,
+                 n_wanted: int) -> None:
         """One test per slot: the free blades, or each blade in its own slot of the disk (d1b)."""
-        for s in range(1, params.n_blades + 1):
-            say(f"{kind} {s}/{params.n_blades}")
+        for s in range(1, self.params.n_blades + 1):
+            self.say(f"{kind} {s}/{self.params.n_blades}")
             rel = f"{folder}/{stem}_{_nn(s)}.uff"
-            record(group, run_test(kind, rel, [s], with_disk, n_wanted, tip_and_disk if with_disk else blade_tip))
-            manifest["tests"].append({"type": kind, "file": rel, key: s})
+            self.record(group, self.run_test(kind, rel, [s], with_disk, n_wanted,
+                                             self.tip_and_disk if with_disk else _blade_tip))
+            self.manifest["tests"].append({"type": kind, "file": rel, key: s})
 
-    per_slot("blade", "blades", "blades", "blade", "blade", False, BLADE_MODES)
-    say("free disk")
-    disk = run_test("disk", "disk/disk.uff", (), True, DISK_MODES, disk_first)
-    record("disk", disk)
-    truth["disk_nodal_diameters"] = disk["nodal_diameters"]
-    manifest["tests"].append({"type": "disk", "file": "disk/disk.uff"})
-    # The disk–one-blade truth solves dominate the build and are independent: solve them two at a time first
-    # (the measurements that follow draw their random numbers in the same order as ever).
-    say(f"d1b truth solves ({params.n_blades}, {workers} at a time)")
-    jobs = [([s], True, D1B_MODES + D1B_MODES // 2 + 6) for s in range(1, params.n_blades + 1)]
-    for (slots, _, _), result in zip(jobs, _solve_parallel(twin, jobs, workers), strict=True):
-        presolved[("d1b", tuple(slots))] = result
-    per_slot("d1b", "d1b", "d1b", "joint", "joint", True, D1B_MODES)
-    say("full bladed disk")
+    def component_tests(self) -> None:
+        """The free blades, the free disk and each disk–one-blade test."""
+        n_blades = self.params.n_blades
+        self.per_slot("blade", "blades", "blades", "blade", "blade", False, BLADE_MODES)
+        self.say("free disk")
+        disk = self.run_test("disk", "disk/disk.uff", (), True, DISK_MODES, _disk_first)
+        self.record("disk", disk)
+        self.truth["disk_nodal_diameters"] = disk["nodal_diameters"]
+        self.manifest["tests"].append({"type": "disk", "file": "disk/disk.uff"})
+        # The disk–one-blade truth solves dominate the build and are independent: solve them two at a time first
+        # (the measurements that follow draw their random numbers in the same order as ever).
+        self.say(f"d1b truth solves ({n_blades}, {self.workers} at a time)")
+        jobs = [([s], True, D1B_MODES + D1B_MODES // 2 + 6) for s in range(1, n_blades + 1)]
+        for (slots, _, _), result in zip(jobs, _solve_parallel(self.twin, jobs, self.workers), strict=True):
+            self.presolved[("d1b", tuple(slots))] = result
+        self.per_slot("d1b", "d1b", "d1b", "joint", "joint", True, D1B_MODES)
 
-    def spread_tips(labels) -> list[int]:
-        # Hammer on the tips of FULL_INPUTS blades spread round the disk: mistuned modes localise on a few
-        # blades, and one reference would miss the rest.
-        tips = [k for k, lab in enumerate(labels) if lab[0] == "blade" and lab[2] == 3]
-        pick = np.unique(np.round(np.linspace(0, len(tips), FULL_INPUTS, endpoint=False)).astype(int))
-        return [tips[i] for i in pick]
+    def assembly_test(self) -> None:
+        """The full bladed disk, then the blades' frequency deviations (truth)."""
+        self.say("full bladed disk")
+        n_full = FULL_FAMILIES * self.params.n_blades + DISK_MODES
+        self.record("assembly", self.run_test("assembly", "assembly/assembly.uff", None, True, n_full, _spread_tips,
+                                              families=FULL_FAMILIES))
+        self.manifest["tests"].append({"type": "assembly", "file": "assembly/assembly.uff",
+                                       "max_order": ema_max_order(n_full)})
+        self.truth["blade_deltas_pct"] = _blade_deltas_pct(self.truth["frequencies_hz"]["blades"])
 
-    n_full = FULL_FAMILIES * params.n_blades + DISK_MODES
-    record("assembly", run_test("assembly", "assembly/assembly.uff", None, True, n_full, spread_tips,
-                                families=FULL_FAMILIES))
-    manifest["tests"].append({"type": "assembly", "file": "assembly/assembly.uff", "max_order": ema_max_order(n_full)})
-    truth["blade_deltas_pct"] = _blade_deltas_pct(truth["frequencies_hz"]["blades"])
+    def films(self) -> None:
+        """Every flank's film scan into ``truth/films/``; the known joints' also into ``films/``."""
+        self.say("film scans")
+        for s in range(1, self.params.n_blades + 1):
+            for flank in ("L", "R"):
+                image, meta = render_film(self.pressure, s, flank, self.rng_film, self.spec.film)
+                name = f"joint_{_nn(s)}_{flank}.png"
+                write_film(self.root / "truth" / "films" / name, image)
+                entry = {"joint": s, "flank": flank, "file": f"films/{name}", **_jsonable(meta.to_dict())}
+                if s in self.known:
+                    write_film(self.root / "films" / name, image)
+                    self.n_files += 1
+                    # The misregistration actually applied is truth (diagnostics only): a lab's manifest can't
+                    # know it.
+                    self.manifest["films"].append({k: v for k, v in entry.items() if k not in TRUTH_ONLY_FILM_KEYS})
+                self.truth.setdefault("films", []).append({**entry, "file": f"truth/films/{name}"})
 
-    say("film scans")
-    L = np.stack([p.L for p in patterns])
-    R = np.stack([p.R for p in patterns])
-    for s in range(1, params.n_blades + 1):
-        for flank in ("L", "R"):
-            image, meta = render_film(pressure, s, flank, rng_film, spec.film)
-            name = f"joint_{_nn(s)}_{flank}.png"
-            write_film(root / "truth" / "films" / name, image)
-            entry = {"joint": s, "flank": flank, "file": f"films/{name}", **_jsonable(meta.to_dict())}
-            if s in known:
-                write_film(root / "films" / name, image)
-                n_files += 1
-                # The misregistration actually applied is truth (diagnostics only): a lab's manifest can't know it.
-                manifest["films"].append({k: v for k, v in entry.items() if k not in TRUTH_ONLY_FILM_KEYS})
-            truth.setdefault("films", []).append({**entry, "file": f"truth/films/{name}"})
-    manifest["campaign"]["orientation"] = ORIENTATION
-    with open(root / "truth" / "patterns.npz", "wb") as fh:
-        np.savez_compressed(fh, L=L, R=R)
-    (root / "truth" / "truth.json").write_text(json.dumps(truth, indent=1), encoding="utf-8")
-    (root / "campaign.toml").write_text(tomli_w.dumps(manifest), encoding="utf-8")
-    return n_files
+    def finish(self) -> int:
+        """Write the true patterns, ``truth.json`` and ``campaign.toml``; the number of campaign files written."""
+        self.manifest["campaign"]["orientation"] = ORIENTATION
+        L = np.stack([p.L for p in self.patterns])
+        R = np.stack([p.R for p in self.patterns])
+        with open(self.root / "truth" / "patterns.npz", "wb") as fh:
+            np.savez_compressed(fh, L=L, R=R)
+        (self.root / "truth" / "truth.json").write_text(json.dumps(self.truth, indent=1), encoding="utf-8")
+        (self.root / "campaign.toml").write_text(tomli_w.dumps(self.manifest), encoding="utf-8")
+        return self.n_files
 
 
 def _blade_deltas_pct(freqs: list[list[float]]) -> list[list[float]]:

@@ -12,7 +12,10 @@ run's sources (the FE model, the campaign) are handed to the workers through the
 
 from __future__ import annotations
 
+import contextlib
 import multiprocessing
+import signal
+import sys
 import time
 from collections.abc import Callable, Iterable, Mapping
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
@@ -57,6 +60,30 @@ class RunStats:
 def _init_worker(single: bool) -> None:
     global _SINGLE_THREAD
     _SINGLE_THREAD = single
+    # Ctrl-C is the parent's to handle: it stops the workers itself, so they print no traceback of their own.
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    _die_with_parent()
+
+
+def _die_with_parent() -> None:
+    """On Linux, a worker whose parent is killed (SIGKILL: no chance to stop it) is killed too, not orphaned."""
+    if sys.platform.startswith("linux"):
+        import ctypes
+
+        with contextlib.suppress(OSError, AttributeError):
+            ctypes.CDLL(None, use_errno=True).prctl(1, signal.SIGKILL)  # 1: PR_SET_PDEATHSIG
+
+
+def _stop(pool: ProcessPoolExecutor) -> None:
+    """Stop the workers now (an error or Ctrl-C in this process): no node is left to finish its job.
+
+    The store stays consistent: every entry is written to a temporary file and renamed, so a killed node
+    leaves nothing behind, and a rerun computes it again.
+    """
+    # concurrent.futures has no public call for this; shutdown() would wait for the running nodes (minutes).
+    for proc in list(getattr(pool, "_processes", {}).values()):
+        proc.terminate()
+    pool.shutdown(wait=False, cancel_futures=True)
 
 
 def _resolve(spec: tuple):
@@ -227,9 +254,14 @@ class Runner:
         pool = self._pool()
         try:
             self._loop(nodes, pool)
-        finally:
+        except BaseException:
             if pool is not None:
-                pool.shutdown(wait=True, cancel_futures=True)
+                _stop(pool)
+            raise
+        else:
+            if pool is not None:
+                pool.shutdown(wait=True)
+        finally:
             _INHERITED.clear()
         return Results(self, [n.name for n in nodes] + list(self.sources))
 

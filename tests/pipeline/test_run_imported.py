@@ -70,7 +70,8 @@ def runs(campaigns):
         if name == "imported":
             # Same UFF files byte for byte, so the EMA's cache (keyed by them) is shared; the reduced models
             # and everything after are not: the imported run reduces the imported matrices.
-            shutil.copytree(root / "cache_native" / "nodes" / "fit_test", root / "cache_imported" / "nodes" / "fit_test")
+            ema_fits = ("nodes", "fit_test")
+            shutil.copytree(root.joinpath("cache_native", *ema_fits), root.joinpath("cache_imported", *ema_fits))
         assert main(["run", str(camp), "--refine", "0", "--out", str(o), "--cache-dir", str(root / f"cache_{name}"),
                      "--quiet"]) == 0
         out[name] = o, json.loads((o / "summary.json").read_text())

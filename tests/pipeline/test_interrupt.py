@@ -1,0 +1,66 @@
+"""A run stopped by Ctrl-C or killed resumes to the same figures (issue 30, items 9–10): one line and exit 130 for
+Ctrl-C, no traceback, and a store whose every entry is whole."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+
+import pytest
+
+from bladetwin.cli import main
+
+SMALL = ["--level", "coarse", "--blades", "4", "--grid", "3x7", "--known", "1,3"]
+SETTINGS = ["--refine", "6", "--n", "5"]
+
+pytestmark = pytest.mark.skipif(sys.platform == "win32", reason="POSIX signals")
+
+
+@pytest.fixture(scope="module")
+def reference(tmp_path_factory):
+    root = tmp_path_factory.mktemp("interrupt")
+    assert main(["lab", "simulate", *SMALL, "--seed", "7", "--out", str(root / "camp")]) == 0
+    assert main(["run", str(root / "camp"), *SETTINGS, "--out", str(root / "ref"), "--cache-dir",
+                 str(root / "ref_store"), "--quiet"]) == 0
+    return root, json.loads((root / "ref" / "summary.json").read_text())
+
+
+def _run_until(root, store, label: str, sig: int) -> tuple[int, str]:
+    """Start a run, send ``sig`` when the progress line ``label`` appears; returns (exit code, stderr)."""
+    cmd = [sys.executable, "-m", "bladetwin", "run", str(root / "camp"), *SETTINGS, "--out", str(root / "o"),
+           "--cache-dir", str(store)]
+    proc = subprocess.Popen(cmd, stderr=subprocess.PIPE, stdout=subprocess.DEVNULL, text=True,
+                            env={**os.environ, "PYTHONUNBUFFERED": "1"})
+    seen = []
+    for line in proc.stderr:
+        seen.append(line)
+        if label in line:
+            proc.send_signal(sig)
+            break
+    if sig != signal.SIGKILL:  # a killed run says nothing more
+        seen.extend(proc.stderr)
+    code = proc.wait(timeout=300)
+    proc.stderr.close()
+    return code, "".join(seen)
+
+
+@pytest.mark.parametrize("label, sig", [("Rubin blade built", signal.SIGINT), ("  dataset (", signal.SIGKILL),
+                                        ("refined (experimental input)", signal.SIGINT)])
+def test_a_stopped_run_resumes_to_the_same_figures(reference, tmp_path, label, sig):
+    root, ref = reference
+    store = tmp_path / "store"
+    code, err = _run_until(root, store, label, sig)
+    assert "Traceback" not in err, err
+    if sig == signal.SIGINT:
+        assert code == 130, err
+        assert err.strip().splitlines()[-1].startswith("bladetwin: interrupted"), err
+    else:
+        assert code == -signal.SIGKILL
+    assert main(["run", str(root / "camp"), *SETTINGS, "--out", str(tmp_path / "again"), "--cache-dir", str(store),
+                 "--quiet"]) == 0
+    again = json.loads((tmp_path / "again" / "summary.json").read_text())
+    for key in ("cases", "joints", "geometric", "bias", "step1", "d1b"):
+        assert again[key] == ref[key], key
