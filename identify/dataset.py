@@ -51,20 +51,20 @@ from .reanalysis import RitzModel, ritz_model, solve_ritz
 from .sensitivity import (
     MAC_WARN,
     Sensitivity,
-    _check_features,
-    _check_formulation,
-    _check_reference,
-    _check_weights,
-    _common_coords,
-    _grid,
-    _pencil_checked,
-    _warn_low_mac,
     assign_modes,
+    blade_grid,
+    check_features,
+    check_formulation,
     check_patterns,
+    check_reference,
+    check_weights,
+    common_coords,
     mac_matrix,
     model_key,
+    pencil_checked,
     summarize,
     update_index,
+    warn_low_mac,
 )
 
 __all__ = [
@@ -156,8 +156,8 @@ class Dataset:
         PR = check_patterns(self.patterns_R, "patterns_R", PL.shape[1:])
         if n and ((P.min(axis=0) < 0).any() or (P.max(axis=0) >= (len(PL), len(PR))).any()):
             raise IdentifyError(f"dataset.pair holds indices outside 0..{len(PL) - 1} (L) / 0..{len(PR) - 1} (R)")
-        modes = _check_features(self.feature_modes, F.shape[1])
-        w = _check_weights(self.weights, len(modes))
+        modes = check_features(self.feature_modes, F.shape[1])
+        w = check_weights(self.weights, len(modes))
         w.flags.writeable = False
         g = _readonly(self.delta_grid, np.float64, "delta_grid", 1)
         if not isinstance(self.model_key, str) or not self.model_key:
@@ -483,8 +483,8 @@ def plan_dataset(disk, blade, patterns_L, patterns_R, delta_grid, *, n_delta_mod
                  n_extra: int = 4, formulation: str = "exact", tol: float = DEFAULT_TOL, method: str = "auto"
                  ) -> DatasetPlan:
     """Check a build's inputs and solve its reference pair's δ = 0 modes (arguments as :func:`build_dataset`)."""
-    _check_formulation(formulation)
-    grid = _grid(blade)
+    check_formulation(formulation)
+    grid = blade_grid(blade)
     PL = check_patterns(patterns_L, "patterns_L", grid)
     PR = check_patterns(patterns_R, "patterns_R", grid)
     g = _check_grid(delta_grid)
@@ -501,15 +501,15 @@ def plan_dataset(disk, blade, patterns_L, patterns_R, delta_grid, *, n_delta_mod
         _check_sensitivity(sensitivity, key, PL, PR, n_modes)
         ref = sensitivity.reference
     else:
-        ref = _check_reference(reference, PL, PR)
+        ref = check_reference(reference, PL, PR)
     ref = (int(ref[0]), int(ref[1]))
     idx = update_index(disk, blade, n_delta_modes)
     w2 = blade.omega2_tuned[:n_delta_modes]
     rows_d = np.array(list(itertools.product(g, repeat=int(n_delta_modes))))
     with single_thread_blas():
-        K0, M = _pencil_checked(disk, blade, PL[ref[0]], PR[ref[1]], ref[0], ref[1], formulation)
+        K0, M = pencil_checked(disk, blade, PL[ref[0]], PR[ref[1]], ref[0], ref[1], formulation)
         _check_update_index(disk, blade, PL[ref[0]], PR[ref[1]], formulation, K0, idx)
-        common = _common_coords(K0.shape[0], disk, blade)
+        common = common_coords(K0.shape[0], disk, blade)
         W = M[np.ix_(common, common)]
         base = _ritz(K0, M, idx, w2, n_modes + n_extra, method, tol, n_modes, ref)
     return DatasetPlan(disk, blade, PL, PR, g, rows_d, int(n_delta_modes), int(n_modes), int(n_extra), formulation,
@@ -529,7 +529,7 @@ def solve_pair(plan: DatasetPlan, i: int, j: int) -> PairResult:
     # 2-core machine was up to 40× slower (rom.modal.single_thread_blas). It also makes a pair's numbers the
     # same in any process, so every executor gives the same table.
     with single_thread_blas():
-        K0, M = _pencil_checked(plan.disk, plan.blade, plan.PL[i], plan.PR[j], i, j, plan.formulation)
+        K0, M = pencil_checked(plan.disk, plan.blade, plan.PL[i], plan.PR[j], i, j, plan.formulation)
         base = _ritz(K0, M, plan.idx, plan.w2, plan.n_modes + plan.n_extra, plan.method, plan.tol, plan.n_modes,
                      (i, j))
         rows, vals = assign_modes(mac_matrix(plan.ref_shapes, base.shapes0[plan.common], plan.W))
@@ -565,7 +565,7 @@ def assemble_dataset(plan: DatasetPlan, results: dict, *, sensitivity: Sensitivi
         freq[sl], bound[sl], mac_min[sl], fallback[sl] = r.frequencies_hz, r.bound, r.mac_min, r.fallback
         freq0[i, j], mac_ref[i, j], rank_ref[i, j] = r.freq0, r.mac_ref, r.rank_ref
     rows_d = plan.rows_d
-    _warn_low_mac(mac_ref, "the pattern pairs (δ = 0, against the reference pair)")
+    warn_low_mac(mac_ref, "the pattern pairs (δ = 0, against the reference pair)")
     if (mac_min < MAC_WARN).any():
         k = int(np.argmin(mac_min))
         warnings.warn(f"{int((mac_min < MAC_WARN).sum())} sample(s) track a mode with MAC < {MAC_WARN} against their "
@@ -621,7 +621,7 @@ def _check_sensitivity(sens: Sensitivity, key: str, PL: np.ndarray, PR: np.ndarr
 def _check_update_index(disk, blade, L, R, formulation, K0, idx) -> None:
     """The δ update must be exactly K[idx, idx] += δ ω² (guards against a change of the ROM's ordering)."""
     probe = np.full(idx.size, 0.01)
-    K1, _ = _pencil_checked(disk, blade, L, R, -1, -1, formulation, delta=probe)
+    K1, _ = pencil_checked(disk, blade, L, R, -1, -1, formulation, delta=probe)
     dK = K1 - K0
     expect = np.zeros_like(dK)
     expect[idx, idx] = probe * blade.omega2_tuned[: idx.size]

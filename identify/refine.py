@@ -36,7 +36,7 @@ import numpy as np
 from rom.contact import ContactPattern
 
 from .errors import IdentifyError
-from .sampler import PatternSampler, _non_collinear
+from .sampler import PatternSampler, non_collinear
 from .tracking import ModeTracker
 
 __all__ = ["RefinedPattern", "SolveMemo", "refine_pattern"]
@@ -271,7 +271,7 @@ class _Search:
         *_, gL, gR = self.decode(x)
         key = gL.tobytes() + gR.tobytes()
         if key not in self.scores:
-            valid = all(0 < g.sum() < self.n_nodes and _non_collinear(g) for g in (gL, gR))
+            valid = all(0 < g.sum() < self.n_nodes and non_collinear(g) for g in (gL, gR))
             if not valid:
                 self.scores[key] = np.inf
             elif self.n_solved >= self.max_solves:

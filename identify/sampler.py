@@ -87,7 +87,7 @@ def draw_coefficients(
     return np.asarray(mean, np.float64) + np.asarray(std, np.float64) * scale * r
 
 
-def _non_collinear(grid: np.ndarray) -> bool:
+def non_collinear(grid: np.ndarray) -> bool:
     """At least 3 contacting nodes, not all on one line."""
     pts = np.argwhere(grid)
     return len(pts) >= 3 and np.linalg.matrix_rank(pts[1:] - pts[0]) >= 2
@@ -308,7 +308,7 @@ class PatternSampler(BaseEstimator):
         a = c.mean(axis=(1, 2))
         lo, hi = self.fraction_range_
         ok = (a >= lo) & (a <= hi) & c.any(axis=(1, 2)) & ~c.all(axis=(1, 2))
-        return ok & np.array([_non_collinear(x) for x in c], dtype=bool)
+        return ok & np.array([non_collinear(x) for x in c], dtype=bool)
 
     def sample(self, n_patterns: int | None = None) -> SideSample:
         """Draw synthetic patterns (Eqs. 31–32), redrawing those outside the measured family.

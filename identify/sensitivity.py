@@ -114,8 +114,8 @@ class Sensitivity:
 
     def with_features(self, feature_modes, weights=None) -> Sensitivity:
         """The same analysis with other feature modes (0-based) and weights (default: the std rule)."""
-        modes = _check_features(feature_modes, self.n_modes)
-        w = default_weights(self.std_hz, modes) if weights is None else _check_weights(weights, len(modes))
+        modes = check_features(feature_modes, self.n_modes)
+        w = default_weights(self.std_hz, modes) if weights is None else check_weights(weights, len(modes))
         return dataclasses.replace(self, feature_modes=modes, weights=w)
 
 
@@ -145,28 +145,28 @@ def check_patterns(patterns, name: str, grid: tuple[int, int] | None = None) -> 
     return a
 
 
-def _check_features(feature_modes, n_modes: int) -> tuple[int, ...]:
+def check_features(feature_modes, n_modes: int) -> tuple[int, ...]:
     modes = tuple(int(m) for m in np.atleast_1d(np.asarray(feature_modes)).ravel())
     if not modes or len(set(modes)) != len(modes) or min(modes) < 0 or max(modes) >= n_modes:
         raise IdentifyError(f"feature_modes {modes}: expected distinct 0-based modes in 0..{n_modes - 1}")
     return modes
 
 
-def _check_weights(weights, n: int) -> np.ndarray:
+def check_weights(weights, n: int) -> np.ndarray:
     w = np.asarray(weights, dtype=np.float64)
     if w.shape != (n,) or not np.all(np.isfinite(w)) or np.any(w < 0) or not w.sum() > 0:
         raise IdentifyError(f"weights {np.array2string(w, precision=4)}: expected {n} finite values ≥ 0, not all 0")
     return w.copy()
 
 
-def _grid(blade: RubinModel) -> tuple[int, int]:
+def blade_grid(blade: RubinModel) -> tuple[int, int]:
     g = blade.meta.get("grid")
     if g is None:
         raise IdentifyError("the blade model carries no contact-grid shape (meta['grid']); use rom.reduce_blade()")
     return int(g[0]), int(g[1])
 
 
-def _check_formulation(formulation: str) -> None:
+def check_formulation(formulation: str) -> None:
     if formulation not in FORMULATIONS:
         raise IdentifyError(f"formulation={formulation!r}: expected one of {FORMULATIONS}")
 
@@ -178,7 +178,7 @@ def model_key(disk: CraigBamptonModel, blade: RubinModel, formulation: str = "ex
     Optional full bases and the blade's own δ (the dataset sets δ itself) are left out. A dataset or
     sensitivity built with another model gets another key.
     """
-    _check_formulation(formulation)
+    check_formulation(formulation)
     parts: list = ["identify-d1b", formulation]
     for model in (disk, blade):
         parts.append(type(model).__name__)
@@ -303,7 +303,7 @@ def summarize(frequencies_hz: np.ndarray, n_features: int = 3) -> tuple[np.ndarr
     return mean, std, rel, modes, default_weights(std, modes)
 
 
-def _warn_low_mac(mac: np.ndarray, what: str) -> None:
+def warn_low_mac(mac: np.ndarray, what: str) -> None:
     bad = mac < MAC_WARN
     if bad.any():
         i = np.unravel_index(np.argmin(mac), mac.shape)
@@ -313,7 +313,7 @@ def _warn_low_mac(mac: np.ndarray, what: str) -> None:
                       stacklevel=3)
 
 
-def _common_coords(n: int, disk: CraigBamptonModel, blade: RubinModel) -> np.ndarray:
+def common_coords(n: int, disk: CraigBamptonModel, blade: RubinModel) -> np.ndarray:
     """Coordinates every pattern shares: disk + blade modal coordinates, then the accessory DOFs (last).
 
     Equal to all coordinates in the exact formulation; the paper formulation also keeps detached root
@@ -376,30 +376,30 @@ def sensitivity(
     UserWarning
         If a tracked mode has MAC < :data:`MAC_WARN` with its reference mode.
     """
-    _check_formulation(formulation)
-    grid = _grid(blade)
+    check_formulation(formulation)
+    grid = blade_grid(blade)
     PL, PR = check_patterns(patterns_L, "patterns_L", grid), check_patterns(patterns_R, "patterns_R", grid)
     n_cand = _check_counts(n_modes, n_extra)
-    ref = _check_reference(reference, PL, PR)
+    ref = check_reference(reference, PL, PR)
     freq, mac = np.empty((len(PL), len(PR), n_modes)), np.empty((len(PL), len(PR), n_modes))
     index = np.empty((len(PL), len(PR), n_modes), np.int64)
     W = ref_shapes = common = None
     order = [ref] + [(i, j) for i in range(len(PL)) for j in range(len(PR)) if (i, j) != ref]  # reference first
     for i, j in tqdm(order, desc="sensitivity", unit="pair", file=sys.stderr, disable=not progress):
-        K, M = _pencil_checked(disk, blade, PL[i], PR[j], i, j, formulation)
+        K, M = pencil_checked(disk, blade, PL[i], PR[j], i, j, formulation)
         with single_thread_blas():  # small dense products: one thread (see d1b_pencil)
             dm = dense_modes(K, M, n_cand, max_rigid=6)
             if dm.frequencies_hz.size < n_cand:
                 raise IdentifyError(f"pair ({i}, {j}): the ROM has only {dm.frequencies_hz.size} elastic modes, "
                                     f"n_modes + n_extra = {n_cand} requested")
             if W is None:  # the reference pair comes first
-                common = _common_coords(K.shape[0], disk, blade)
+                common = common_coords(K.shape[0], disk, blade)
                 W = M[np.ix_(common, common)]
                 ref_shapes = dm.shapes[common, :n_modes]
             cmac = mac_matrix(ref_shapes, dm.shapes[common], W)
         cols, vals = assign_modes(cmac)
         freq[i, j], index[i, j], mac[i, j] = dm.frequencies_hz[cols], cols, vals
-    _warn_low_mac(mac, "the sensitivity maps")
+    warn_low_mac(mac, "the sensitivity maps")
     mean, std, rel, modes, w = summarize(freq, n_features)
     return Sensitivity(frequencies_hz=freq, mean_hz=mean, std_hz=std, std_rel_pct=rel, feature_modes=modes, weights=w,
                        reference=ref, mode_index=index, mac=mac, patterns_L=PL, patterns_R=PR,
@@ -416,7 +416,7 @@ def _check_counts(n_modes, n_extra) -> int:
     return int(n_modes + n_extra)
 
 
-def _check_reference(reference, PL: np.ndarray, PR: np.ndarray) -> tuple[int, int]:
+def check_reference(reference, PL: np.ndarray, PR: np.ndarray) -> tuple[int, int]:
     if reference is None:
         return reference_pair(PL, PR)
     try:
@@ -428,7 +428,7 @@ def _check_reference(reference, PL: np.ndarray, PR: np.ndarray) -> tuple[int, in
     return i, j
 
 
-def _pencil_checked(disk, blade, L, R, i: int, j: int, formulation: str, delta=None):
+def pencil_checked(disk, blade, L, R, i: int, j: int, formulation: str, delta=None):
     try:
         return d1b_pencil(disk, blade, L, R, formulation=formulation, delta=delta)
     except IdentifyError:

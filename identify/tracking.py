@@ -19,7 +19,7 @@ from rom.modal import dense_modes, single_thread_blas
 from rom.rubin import RubinModel
 
 from .errors import IdentifyError
-from .sensitivity import _common_coords, assign_modes, d1b_pencil, mac_matrix, model_key
+from .sensitivity import assign_modes, common_coords, d1b_pencil, mac_matrix, model_key
 
 __all__ = ["ModeTracker", "TrackedModes"]
 
@@ -68,7 +68,7 @@ class ModeTracker:
         K, M = d1b_pencil(disk, blade, np.asarray(L, bool), np.asarray(R, bool), formulation=formulation)
         with single_thread_blas():
             dm = dense_modes(K, M, n_modes, max_rigid=6)
-        common = _common_coords(K.shape[0], disk, blade)
+        common = common_coords(K.shape[0], disk, blade)
         return cls(disk, blade, dm.shapes[common, :n_modes], M[np.ix_(common, common)], n_extra, formulation)
 
     @classmethod
@@ -103,6 +103,6 @@ class ModeTracker:
         n_cand = self.n_modes + self.n_extra
         with single_thread_blas():
             dm = dense_modes(K, M, n_cand, max_rigid=6)
-            common = _common_coords(K.shape[0], self.disk, self.blade)
+            common = common_coords(K.shape[0], self.disk, self.blade)
             cols, vals = assign_modes(mac_matrix(self.shapes, dm.shapes[common], self.weight))
         return TrackedModes(np.asarray(dm.frequencies_hz[cols], np.float64), vals)

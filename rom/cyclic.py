@@ -51,12 +51,12 @@ from .fe_assembly import AssemblyModes
 from .modal import dense_modes
 from .rom_assembly import (
     DEFAULT_FORMULATION,
-    _blade_part,
-    _check_pattern,
-    _deltas,
-    _every_slot,
-    _grid_shape,
-    _meas_labels,
+    blade_part,
+    check_pattern,
+    every_slot,
+    grid_shape,
+    measurement_labels,
+    slot_deltas,
 )
 from .rubin import RubinModel
 
@@ -244,7 +244,7 @@ class _Slot:
 
     def __init__(self, disk: CyclicDiskModel, blade: RubinModel, pattern: ContactPattern, delta, formulation: str,
                  slot: int):
-        se, iface_pos, contact = _blade_part(blade, pattern, delta, formulation)
+        se, iface_pos, contact = blade_part(blade, pattern, delta, formulation)
         n_i = disk.n_i
         nm = se.n_modal
         n_free = int((~contact).sum())
@@ -382,14 +382,14 @@ def solve_full_cyclic(
     """
     t0 = time.perf_counter()
     N, n_i = disk.n_slots, disk.n_i
-    grid = _grid_shape(blade)
+    grid = grid_shape(blade)
     if tuple(disk.meta.get("grid", grid)) != grid:
         raise ROMError(f"blade model grid {grid} differs from the cyclic disk's {tuple(disk.meta['grid'])}")
-    patterns = _every_slot(patterns, N)
-    dl = _deltas(deltas, N, blade.m)
+    patterns = every_slot(patterns, N)
+    dl = slot_deltas(deltas, N, blade.m)
     n_modes = 3 * N if n_modes is None else int(n_modes)
     n_cc = disk.cc_modes.shape[2] if n_cc is None else int(n_cc)
-    slots = [_Slot(disk, blade, _check_pattern(patterns[s], grid, s), dl.get(s), formulation, s)
+    slots = [_Slot(disk, blade, check_pattern(patterns[s], grid, s), dl.get(s), formulation, s)
              for s in range(1, N + 1)]
     _append_local(disk, slots, [_new_local(sl, _local_modes(sl, n_local_modes, k), 0.0) for k, sl in enumerate(slots)])
     G0, CG0, DG0 = _global_cc(disk, n_cc)
@@ -407,7 +407,7 @@ def solve_full_cyclic(
                                     for k, sl in enumerate(slots)])
     f_hz = np.sqrt(np.clip(lam, 0.0, None)) / (2 * np.pi)
     meas = _outputs(disk, slots, parts, Y)
-    labels = _meas_labels(N, range(1, N + 1), blade.n_b - blade.n_interface)
+    labels = measurement_labels(N, range(1, N + 1), blade.n_b - blade.n_interface)
     log.info("cyclic full solve: start %.1f s, Ritz rounds %.1f s", t1 - t0, time.perf_counter() - t1)
     return CyclicSolution(AssemblyModes(f_hz, meas, labels), res, int(Y.shape[0]))
 

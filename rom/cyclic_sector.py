@@ -46,7 +46,7 @@ from scipy.spatial import cKDTree
 
 from .craig_bampton import disk_boundary_dofs
 from .errors import ROMError
-from .solver import _anything_missed, available_backends, factorize, solve_modes_factored
+from .solver import anything_missed, available_backends, factorize, solve_modes_factored
 
 __all__ = ["SectorBlocks", "sector_blocks", "SectorReduction", "reduce_sectors", "CYCLIC_TOL"]
 
@@ -521,7 +521,7 @@ def _complex_modes(K, M, k: int, inv, max_rounds: int = 4):
         # Rayleigh–Ritz step on them gives M-orthonormal vectors (μ_ηη = I) with the same span.
         lam, Y = sla.eigh(_herm(vecs.conj().T @ (K @ vecs)), _herm(vecs.conj().T @ (M @ vecs)), check_finite=False)
         X = vecs @ Y
-        if not _anything_missed(K, M, inv, lam, X, 2):
+        if not anything_missed(K, M, inv, lam, X, 2):
             return lam[:k], X[:, :k]
         kk = min(2 * kk, n - 2)
     raise ROMError("the clamped disk's harmonic modes are incomplete after repeated Lanczos runs")

@@ -93,14 +93,16 @@ def _check_formulation(formulation: str) -> None:
         raise ValueError(f"formulation must be one of {FORMULATIONS}, got {formulation!r}")
 
 
-def _grid_shape(blade: RubinModel) -> tuple[int, int]:
+def grid_shape(blade: RubinModel) -> tuple[int, int]:
+    """The contact grid (rows, cols) the Rubin blade was reduced for."""
     g = blade.meta.get("grid")
     if g is None:
         raise ValueError("the blade model carries no contact-grid shape (meta['grid']); use reduce_blade()")
     return int(g[0]), int(g[1])
 
 
-def _check_pattern(pattern: ContactPattern, grid: tuple[int, int], slot: int) -> ContactPattern:
+def check_pattern(pattern: ContactPattern, grid: tuple[int, int], slot: int) -> ContactPattern:
+    """``pattern`` if it is a ContactPattern on ``grid``; else a one-line error naming ``slot``."""
     if not isinstance(pattern, ContactPattern):
         raise ValueError(f"pattern of slot {slot} must be a ContactPattern, got {type(pattern).__name__}")
     if pattern.shape != grid:
@@ -113,7 +115,7 @@ def _contact_dofs(pattern: ContactPattern) -> np.ndarray:
     return np.repeat(np.concatenate([pattern.L.ravel(), pattern.R.ravel()]), 3)
 
 
-def _blade_part(blade: RubinModel, pattern: ContactPattern, delta, formulation: str):
+def blade_part(blade: RubinModel, pattern: ContactPattern, delta, formulation: str):
     """Super-element of one blade for a pattern (Eqs. 15–20) and the roles of its coordinates.
 
     Returns
@@ -152,7 +154,8 @@ def _rotate_triplets(A: np.ndarray, rows: np.ndarray, R: np.ndarray) -> np.ndarr
     return B
 
 
-def _meas_labels(n_sectors: int, slots, n_meas: int, meas_dir: int = 1) -> list:
+def measurement_labels(n_sectors: int, slots, n_meas: int, meas_dir: int = 1) -> list:
+    """Measurement labels of an assembly: one disk point per sector, then each slot's blade points."""
     labels: list = [("disk", k + 1, 1, 3) for k in range(n_sectors)]
     for s in slots:
         labels += [("blade", int(s), p + 1, meas_dir) for p in range(n_meas)]
@@ -170,7 +173,7 @@ def _cb_assembly(
 ) -> ReducedAssembly:
     """Dense CB disk + Rubin blades (Eq. 22); ``slot_block[s]`` = index of the disk boundary block of slot s."""
     n_sectors = int(disk.meta.get("n_sectors", disk.output_basis.shape[0]))
-    grid = _grid_shape(blade)
+    grid = grid_shape(blade)
     n_i = blade.n_interface
     if disk.n_b != n_i * len(disk.meta.get("slots", [None])):
         raise ValueError(f"disk boundary ({disk.n_b} DOFs) does not match the blade root ({n_i} DOFs per slot)")
@@ -179,8 +182,8 @@ def _cb_assembly(
     n_acc = blade.n_b - n_i
     blade_out = []
     for s in sorted(patterns):
-        pat = _check_pattern(patterns[s], grid, s)
-        se, iface_pos, contact = _blade_part(blade, pat, deltas.get(s), formulation)
+        pat = check_pattern(patterns[s], grid, s)
+        se, iface_pos, contact = blade_part(blade, pat, deltas.get(s), formulation)
         idx = np.empty(se.n, np.int64)
         nm = se.n_modal
         idx[:nm] = n + np.arange(nm)
@@ -208,7 +211,7 @@ def _cb_assembly(
     out[:n_sectors, : disk.n] = disk.output_basis[rows]
     for k, acc in enumerate(blade_out):
         out[n_sectors + k * n_acc + np.arange(n_acc), acc] = 1.0
-    labels = _meas_labels(n_sectors, sorted(patterns), n_acc)
+    labels = measurement_labels(n_sectors, sorted(patterns), n_acc)
     return ReducedAssembly(K, M, out, labels, {"formulation": formulation, "slots": sorted(patterns)})
 
 
@@ -283,8 +286,8 @@ def assemble_full(
         n_slots = int(disk.meta.get("n_sectors", 0))
     else:
         raise ValueError(f"disk must be a BladedDisk or a CraigBamptonModel, got {type(disk).__name__}")
-    pats = _every_slot(patterns, n_slots)
-    dl = _deltas(deltas, n_slots, blade.m)
+    pats = every_slot(patterns, n_slots)
+    dl = slot_deltas(deltas, n_slots, blade.m)
     if isinstance(disk, CraigBamptonModel):
         slots = [int(s) for s in disk.meta.get("slots", [])]
         if sorted(slots) != list(range(1, n_slots + 1)):
@@ -295,7 +298,7 @@ def assemble_full(
     return _hybrid_assembly(disk, blade, pats, dl, formulation)
 
 
-def _every_slot(patterns: Mapping[int, ContactPattern] | ContactPattern, n_slots: int) -> dict[int, ContactPattern]:
+def every_slot(patterns: Mapping[int, ContactPattern] | ContactPattern, n_slots: int) -> dict[int, ContactPattern]:
     """Slot → pattern for every slot 1..N (one pattern given: the same in every slot); other slots refused."""
     if isinstance(patterns, ContactPattern):
         return {s: patterns for s in range(1, n_slots + 1)}
@@ -308,7 +311,8 @@ def _every_slot(patterns: Mapping[int, ContactPattern] | ContactPattern, n_slots
     return pats
 
 
-def _deltas(deltas, n_slots: int, m: int) -> dict:
+def slot_deltas(deltas, n_slots: int, m: int) -> dict:
+    """Slot → the blade's δ (relative, first ``m`` modes), from one row per blade; None gives {}."""
     if deltas is None:
         return {}
     if isinstance(deltas, Mapping):
@@ -324,7 +328,7 @@ def _hybrid_assembly(
     formulation: str,
 ) -> ReducedAssembly:
     """Sparse hybrid: disk FE (global frame) + Rubin super-elements on its slot DOFs (design §5)."""
-    grid = _grid_shape(blade)
+    grid = grid_shape(blade)
     if tuple(bd.params.grid) != grid:
         raise ValueError(f"blade model grid {grid} differs from the bladed disk's {tuple(bd.params.grid)}")
     nd = bd.disk.n_dof
@@ -333,8 +337,8 @@ def _hybrid_assembly(
     rows_k, cols_k, vk, vm = [], [], [], []
     blade_out = []
     for s in sorted(patterns):
-        pat = _check_pattern(patterns[s], grid, s)
-        se, iface_pos, contact = _blade_part(blade, pat, deltas.get(s), formulation)
+        pat = check_pattern(patterns[s], grid, s)
+        se, iface_pos, contact = blade_part(blade, pat, deltas.get(s), formulation)
         nm = se.n_modal
         # Root coordinates to the global frame: x_loc = R_sᵀ x_glob on every kept interface triplet.
         iface_rows = nm + np.flatnonzero(iface_pos >= 0)
@@ -367,7 +371,7 @@ def _hybrid_assembly(
     meas_disk = 3 * bd.disk.node_set("meas").ravel() + int(bd.disk.meta["meas_direction"]) - 1
     out_cols = np.concatenate([meas_disk] + blade_out)
     out = sp.csr_matrix((np.ones(out_cols.size), (np.arange(out_cols.size), out_cols)), shape=(out_cols.size, n))
-    labels = _meas_labels(n_sectors, sorted(patterns), n_acc)
+    labels = measurement_labels(n_sectors, sorted(patterns), n_acc)
     log.info("hybrid assembly: %d DOF (%d disk FE + %d blade ROM), nnz(K)=%d", n, nd, n - nd, K.nnz)
     meta = {"formulation": formulation, "slots": sorted(patterns), "assembly": "full", "method": "hybrid"}
     return ReducedAssembly(K, M, out, labels, meta)

@@ -296,7 +296,7 @@ def _complete_modes(K, M, sigma: float, fac, k: int, v0: np.ndarray, max_rigid_h
     # A few vectors suffice: Lanczos rarely misses more than one copy per cluster, and each round re-checks.
     k_check = min(k, max(max_rigid_hint, 2), n - k - 1)
     for _ in range(max_rounds):
-        if k_check < 1 or not _anything_missed(K, M, fac, vals, vecs, k_check):
+        if k_check < 1 or not anything_missed(K, M, fac, vals, vecs, k_check):
             break
         # Something was missed: find it accurately with Lanczos on the deflated operator, (K − σM)⁻¹ followed
         # by the M-orthogonal projection away from the modes found (its spectrum is the pencil's minus them).
@@ -318,7 +318,7 @@ def _complete_modes(K, M, sigma: float, fac, k: int, v0: np.ndarray, max_rigid_h
     return vals, vecs
 
 
-def _anything_missed(K, M, fac, vals: np.ndarray, vecs: np.ndarray, b: int, iterations: int = 4) -> bool:
+def anything_missed(K, M, fac, vals: np.ndarray, vecs: np.ndarray, b: int, iterations: int = 4) -> bool:
     """Whether an eigenvalue below ``vals[-1]`` lies outside ``span(vecs)``: a cheap block test.
 
     A few steps of deflated subspace iteration with ``b`` deterministic vectors, then Rayleigh–Ritz. Ritz

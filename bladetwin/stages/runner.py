@@ -287,8 +287,11 @@ class Runner:
             if here:
                 self._run_here(here[0])  # then look again: its output may make others stored or ready
                 continue
-            for n in ready[: max(0, self.workers - len(running))]:
-                running[self._submit(pool, n)] = n
+            for n in ready:
+                if len(running) >= self.workers:
+                    break
+                if (n.func_id, self.state[n.name].key) not in self._running_keys:  # a twin just went out
+                    running[self._submit(pool, n)] = n
             if not running:
                 missing = [t for t in self.targets if not self._available(t)]
                 if missing:

@@ -32,8 +32,11 @@ def _run_until(root, store, label: str, sig: int) -> tuple[int, str]:
     """Start a run, send ``sig`` when the progress line ``label`` appears; returns (exit code, stderr)."""
     cmd = [sys.executable, "-m", "bladetwin", "run", str(root / "camp"), *SETTINGS, "--out", str(root / "o"),
            "--cache-dir", str(store)]
+    # Ctrl-C's default action, whatever this test process inherited (a process started with SIGINT ignored
+    # passes that on, and Python then never raises KeyboardInterrupt)
     proc = subprocess.Popen(cmd, stderr=subprocess.PIPE, stdout=subprocess.DEVNULL, text=True,
-                            env={**os.environ, "PYTHONUNBUFFERED": "1"})
+                            env={**os.environ, "PYTHONUNBUFFERED": "1"},
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     seen = []
     for line in proc.stderr:
         seen.append(line)
