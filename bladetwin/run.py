@@ -114,6 +114,7 @@ def run_campaigns(campaigns: Iterable[Campaign], opts: RunOptions | None = None,
         timings["total"] = time.perf_counter() - t0
         view = _Prefixed(res, pre) if pre else res
         out.append(gather(view, c, opts, sources[pre + "fe_model"].value, timings))
+        out[-1].notes.extend(runner.warnings)  # e.g. a damaged store entry, recomputed: in summary.json too
     return out
 
 

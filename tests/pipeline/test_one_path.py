@@ -164,3 +164,19 @@ def test_scheduler_sends_each_campaign_graph_to_a_dask_cluster(camp, tmp_path, c
     remote = json.loads((tmp_path / "dask" / "first" / "summary.json").read_text())
     assert remote["cases"] == local["cases"] and remote["joints"] == local["joints"]
     assert (tmp_path / "dask" / "index.html").is_file()
+
+
+def test_a_damaged_store_entry_is_recomputed_and_named_in_the_summary(camp, tmp_path, capsys):
+    _run(camp, [camp / "first"], tmp_path / "ref", capsys)
+    store = tmp_path / "store"
+    shutil.copytree(camp / "store", store)
+    entry = sorted((store / "nodes" / "fit_test").glob("*.npz"))[0]
+    entry.write_bytes(b"")  # a zero-byte EMA entry, as a full disk leaves it
+    capsys.readouterr()
+    assert main(["run", str(camp / "first"), *SETTINGS, "--out", str(tmp_path / "o"), "--cache-dir", str(store)]) == 0
+    err = capsys.readouterr().err
+    assert "Traceback" not in err and f"warning: {entry}" in err
+    s = json.loads((tmp_path / "o" / "summary.json").read_text())
+    ref = json.loads((tmp_path / "ref" / "summary.json").read_text())
+    assert any(str(entry) in n and "recomputed" in n for n in s["notes"])
+    assert s["cases"] == ref["cases"] and s["joints"] == ref["joints"]
