@@ -17,7 +17,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 import ema
-from identify.numbering import rom_modal_model
+from ema.numbering import rom_modal_model
 from identify.plots import (
     plot_area_fractions,
     plot_centroids,

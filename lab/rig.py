@@ -25,7 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ema.frf import FRFSet
-from identify.numbering import dof_label, rom_modal_model
+from ema.numbering import dof_label, rom_modal_model
 
 from .truth import TruthModes
 

@@ -169,7 +169,7 @@ class Runner:
         if name in self.sources:
             return ("i", self.state[name].key)
         node = self.pipeline[name]
-        if node.stored and self.state[name].value is _MISSING:
+        if node.stored:  # by path, even if loaded here: a worker reads a model once, it is never pickled per node
             return ("s", str(self.store.path(node.func_id, self.state[name].key)))
         return ("v", self.value(name))
 

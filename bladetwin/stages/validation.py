@@ -7,8 +7,8 @@ from dataclasses import dataclass
 import numpy as np
 
 import ema
+from ema.numbering import rom_modal_model
 from identify.dataset import Dataset
-from identify.numbering import rom_modal_model
 from identify.validation import ModeComparison, compare_modes
 from rom.fe_assembly import AssemblyModes
 

@@ -2,14 +2,16 @@
 
 A disk point of sector ``s`` is UFF node ``s``; point ``p`` of the blade in slot ``s`` is node
 ``BLADE_NODE_STRIDE · s + p``. Virtual campaigns are written this way, and a lab's files are read this way, so
-a ROM's modes can be compared with an EMA's on their common DOFs.
+a ROM's modes can be compared with an EMA's on their common DOFs. It lives in ``ema`` (floor 1) because the
+rig (``lab``), the identification and the pipeline all need it, and ``ema`` may import none of them: the ROM's
+modes are taken duck-typed.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from ema.modal import ModalModel
+from .modal import ModalModel
 
 __all__ = ["BLADE_NODE_STRIDE", "dof_label", "rom_modal_model"]
 
