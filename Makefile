@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: run test lint bench clean
+.PHONY: run test lint bench results bench-results clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -23,6 +23,21 @@ lint: $(STAMP)
 
 bench: $(STAMP)
 	$(BIN)/python benchmarks/fe_modes.py
+
+# docs/results.md and the README's figures from the last run's summary.json and the benchmarks' JSON files.
+results: $(STAMP)
+	test -f out/academic/summary.json || $(BIN)/bladetwin run
+	mkdir -p docs/results && cp out/academic/summary.json docs/results/summary.json
+	$(BIN)/python -m bladetwin.results_doc docs/results --readme README.md
+
+# The benchmarks behind docs/results.md's performance table (about 15 min on 2 cores), then `make results`.
+bench-results: $(STAMP)
+	mkdir -p docs/results
+	$(BIN)/python benchmarks/run_cold.py --json docs/results/bench_run.json
+	$(BIN)/python benchmarks/ema.py --json docs/results/bench_ema.json
+	$(BIN)/python benchmarks/rom.py --json docs/results/bench_rom.json
+	$(BIN)/python benchmarks/dataset.py --json docs/results/bench_dataset.json
+	$(MAKE) results
 
 clean:
 	rm -rf $(VENV) .pytest_cache out

@@ -6,12 +6,14 @@ problem with a manifest is one line naming the file, the field and what was expe
 
 from __future__ import annotations
 
-import re
+import contextvars
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 
-__all__ = ["Campaign", "CampaignError", "FilmEntry", "TestEntry", "check_files", "read_campaign", "model_family",
+from .manifest_keys import CAMPAIGN_KEYS, FILM_KEYS, TEST_KEYS, TOP_KEYS, film_meta_message, unknown_key_message
+
+__all__ = ["Campaign", "CampaignError", "FilmEntry", "TestEntry", "read_campaign", "model_family",
            "imported_model_table", "ACADEMIC_MODEL_KEYS", "IMPORTED_MODEL_KEYS"]
 
 TEST_TYPES = ("blade", "disk", "d1b", "assembly")
@@ -46,7 +48,9 @@ class TestEntry:
         A picks file (``ema.save_picks``): hand-picked poles that replace the automatic selection.
     units : str or None
         FRF unit label the manifest expects (``units`` of the test, else ``frf_units`` of ``[campaign]``),
-        checked against the file's own label before any computation; None: not checked.
+        checked against the file's own label before any computation; None: the same label as the other files.
+    check_numbering : bool
+        Check the file's node numbers against its type and blade/joint (``campaign_checks.check_numbering``).
     """
 
     __test__ = False  # not a pytest class, despite the name
@@ -57,6 +61,7 @@ class TestEntry:
     max_order: int = 60
     picks: Path | None = None
     units: str | None = None
+    check_numbering: bool = True
 
 
 @dataclass(frozen=True)
@@ -123,6 +128,11 @@ class Campaign:
         return d if d.is_dir() else None
 
 
+def _known(table: dict, allowed: tuple[str, ...], where: str) -> None:
+    if (msg := unknown_key_message(table, allowed, where)) is not None:
+        raise CampaignError(msg)
+
+
 def _need(table: dict, key: str, where: str, kind: type | tuple[type, ...]):
     if key not in table:
         raise CampaignError(f"{where}: missing field {key!r}")
@@ -147,10 +157,18 @@ def _grid(value, where: str) -> tuple[int, int]:
     return int(value[0]), int(value[1])
 
 
+#: Set by ``read_campaign(..., allow_outside=True)`` (``--allow-outside``) while it reads one manifest.
+_ALLOW_OUTSIDE = contextvars.ContextVar("allow_outside", default=False)
+
+
 def _file(root: Path, rel, where: str) -> Path:
     if not isinstance(rel, str) or not rel:
         raise CampaignError(f"{where}: file = {rel!r}, expected a path relative to the campaign folder")
     path = (root / rel).resolve()
+    # A lab's campaign reads its own folder: `../x` or `/etc/...` is a mistake unless the user says otherwise.
+    if not _ALLOW_OUTSIDE.get() and not path.is_relative_to(root.resolve()):
+        raise CampaignError(f"{where}: file {rel!r} is outside the campaign folder {root} (--allow-outside "
+                            "permits it)")
     if not path.is_file():
         raise CampaignError(f"{where}: file {rel!r} not found in {root}")
     return path
@@ -255,24 +273,34 @@ def _check_model(model: dict, root: Path, n_blades: int, grid: tuple[int, int], 
             raise CampaignError(f"{where}: {key} = {model[key]!r}, but [campaign] {key} = {value}")
 
 
-def read_campaign(folder: str | Path) -> Campaign:
+def read_campaign(folder: str | Path, *, allow_outside: bool = False) -> Campaign:
     """Read and check ``folder/campaign.toml`` (docs/campaign.md).
 
     Raises
     ------
     CampaignError
         No folder or manifest, TOML syntax, a missing or mistyped field, an unknown test type, a blade or
-        joint index out of range, a file that does not exist, a known joint without both films.
+        joint index out of range, a file that does not exist or (unless ``allow_outside``) lies outside the
+        folder, a known joint without both films.
     """
-    root = Path(folder)
+    token = _ALLOW_OUTSIDE.set(bool(allow_outside))
+    try:
+        return _read_campaign(Path(folder))
+    finally:
+        _ALLOW_OUTSIDE.reset(token)
+
+
+def _read_campaign(root: Path) -> Campaign:
     if not root.is_dir():
         raise CampaignError(f"{root}: not a campaign folder (expected a folder with campaign.toml)")
     path = root / "campaign.toml"
     if not path.is_file():
         raise CampaignError(f"{root}: no campaign.toml (docs/campaign.md describes the manifest)")
     doc = _read_toml(path)
+    _known(doc, TOP_KEYS, str(path))
     head = _need(doc, "campaign", str(path), dict)
     where = f"{path} [campaign]"
+    _known(head, CAMPAIGN_KEYS, where)
     n_blades = _need(head, "n_blades", where, int)
     if n_blades < 2:
         raise CampaignError(f"{where}: n_blades = {n_blades}, expected ≥ 2")
@@ -299,17 +327,25 @@ def read_campaign(folder: str | Path) -> Campaign:
         w = f"{path} films[{k}]"
         if not isinstance(f, dict):
             raise CampaignError(f"{w}: expected a table")
+        _known(f, FILM_KEYS, w)
         joint = _need(f, "joint", w, int)
         flank = _need(f, "flank", w, str)
         if not 1 <= joint <= n_blades or flank not in ("L", "R"):
             raise CampaignError(f"{w}: joint {joint!r} flank {flank!r}, expected 1..{n_blades} and L or R")
         meta = {key: v for key, v in f.items() if key not in ("joint", "flank", "file")}
+        if (msg := film_meta_message(meta, w)) is not None:
+            raise CampaignError(msg)
         if (joint, flank) in films:
             raise CampaignError(f"{w}: joint {joint} flank {flank} is named twice")
         films[joint, flank] = FilmEntry(joint, flank, _file(root, f.get("file"), w), meta)
     missing = [(j, flank) for j in known for flank in ("L", "R") if (j, flank) not in films]
     if missing:
         raise CampaignError(f"{path}: known joint {missing[0][0]} has no film for flank {missing[0][1]}")
+    unknown = [k for k, (j, _) in enumerate(films) if j not in known]
+    if unknown:
+        j = list(films)[unknown[0]][0]
+        raise CampaignError(f"{path} films[{unknown[0]}]: joint {j} is not in known_joints {known}: add it there to "
+                            "use its film, or remove the film")
     return Campaign(root.resolve(), str(head.get("name", root.name)), str(head.get("kind", "lab")), n_blades, grid,
                     tuple(int(k) for k in known), dict(model), tuple(tests), tuple(films.values()))
 
@@ -323,6 +359,7 @@ def _read_tests(doc: dict, path: Path, root: Path, n_blades: int, default_units:
         w = f"{path} tests[{k}]"
         if not isinstance(t, dict):
             raise CampaignError(f"{w}: expected a table")
+        _known(t, TEST_KEYS, w)
         kind = _need(t, "type", w, str)
         if kind not in TEST_TYPES:
             raise CampaignError(f"{w}: type = {kind!r}, expected one of {', '.join(TEST_TYPES)}")
@@ -340,61 +377,9 @@ def _read_tests(doc: dict, path: Path, root: Path, n_blades: int, default_units:
         units = t.get("units", default_units)
         if units is not None and not isinstance(units, str):
             raise CampaignError(f"{w}: units = {units!r}, expected a unit label such as 'm/s/N'")
+        check = t.get("check_numbering", True)
+        if not isinstance(check, bool):
+            raise CampaignError(f"{w}: check_numbering = {check!r}, expected true or false")
         tests.append(TestEntry(kind, _file(root, t.get("file"), w), index, order,
-                               None if t.get("picks") is None else _file(root, t["picks"], f"{w} picks"), units))
+                               None if t.get("picks") is None else _file(root, t["picks"], f"{w} picks"), units, check))
     return tests
-
-
-_JOINT_IN_NAME = re.compile(r"joint[_\- ]?0*(\d+)", re.IGNORECASE)
-_FLANK_IN_NAME = re.compile(r"[_\-]([LR])(?:[_\-.]|$)")
-
-
-def _film_identity(path: Path) -> tuple[int | None, str | None, str]:
-    """(joint, flank, where from) a film image says it shows: its PNG text fields, else its file name."""
-    from PIL import Image, UnidentifiedImageError
-
-    try:
-        with Image.open(path) as im:
-            info = dict(getattr(im, "text", {}) or {})
-    except (UnidentifiedImageError, OSError) as exc:
-        raise CampaignError(f"{path}: not a readable image ({exc})") from None
-    if "joint" in info:
-        try:
-            return int(info["joint"]), info.get("flank"), "its PNG text field 'joint'"
-        except ValueError:
-            raise CampaignError(f"{path}: PNG text field joint = {info['joint']!r}, expected an integer") from None
-    m = _JOINT_IN_NAME.search(path.stem)
-    f = _FLANK_IN_NAME.search(path.stem)
-    return (int(m.group(1)) if m else None), (f.group(1) if f else None), "its file name"
-
-
-def check_files(campaign: Campaign, say=lambda msg: None) -> None:
-    """Check every file the manifest names before any long computation.
-
-    Every UFF must read (``ema.read_uff`` refuses damaged files), carry the FRF unit label the manifest
-    expects (``units`` / ``frf_units``) and a picks file must load. Every film must be a readable image whose
-    joint and flank, where the image says (PNG text fields ``joint``/``flank``) or its file name does
-    (``joint_07_L.png``), are the ones the manifest gives it.
-
-    Raises
-    ------
-    CampaignError, ema.EMAError
-        One line naming the file and what is wrong.
-    """
-    import ema
-
-    manifest = campaign.root / "campaign.toml"
-    for t in campaign.tests:
-        say(f"checking {t.file.name}")
-        frf = ema.read_uff(t.file)
-        if t.units is not None and (frf.units or "").replace(" ", "") != t.units.replace(" ", ""):
-            raise CampaignError(f"{t.file}: FRF units {frf.units!r}, but {manifest.name} says {t.units!r} "
-                                "(units / frf_units): convert the file or correct the manifest")
-        if t.picks is not None:
-            ema.load_picks(t.picks)
-    for f in campaign.films:
-        joint, flank, source = _film_identity(f.file)
-        for what, said, given in (("joint", joint, f.joint), ("flank", flank, f.flank)):
-            if said is not None and said != given:
-                raise CampaignError(f"{manifest} films: {f.file.name} is a film of {what} {said} ({source}), but the "
-                                    f"manifest gives it to {what} {given}")

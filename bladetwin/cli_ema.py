@@ -71,7 +71,7 @@ def _print_modes(result, out=None) -> None:
     print(f"{'mode':>4}  {'f [Hz]':>12}  {'zeta [%]':>9}  {'quality':>7}  {'dominance':>9}", file=out)
     for k in range(m.n_modes):
         q = m.quality[k] if m.quality is not None else float("nan")
-        print(f"{k + 1:>4}  {m.frequency_hz[k]:>12.4f}  {100 * m.damping_ratio[k]:>9.4f}  {q:>7.2f}  "
+        print(f"{k + 1:>4}  {m.frequencies_hz[k]:>12.4f}  {100 * m.damping_ratio[k]:>9.4f}  {q:>7.2f}  "
               f"{result.dominance[k]:>9.2f}", file=out)
     if result.quality.size:
         print(f"FRF fit quality: min {np.min(result.quality):.4f}, mean {np.mean(result.quality):.4f}", file=out)
@@ -88,7 +88,7 @@ def _cmd_fit(args: argparse.Namespace) -> int:
     if args.plot:
         from ema.plots import plot_stabilization
 
-        fig = plot_stabilization(result.diagram, frf, selected_hz=result.model.frequency_hz)
+        fig = plot_stabilization(result.diagram, frf, selected_hz=result.model.frequencies_hz)
         atomic_savefig(fig, args.plot, dpi=120)
     if args.json:
         payload = result.as_dict()
@@ -175,7 +175,7 @@ def _cmd_assembly(args: argparse.Namespace) -> int:
     result = _fit(read_frfs(_uff_files(args.dir), form=args.form, nonfinite=args.nonfinite), args)
     m = result.model
     table = pd.DataFrame(
-        {"frequency_hz": m.frequency_hz, "damping_ratio": m.damping_ratio, "dominance": result.dominance,
+        {"frequency_hz": m.frequencies_hz, "damping_ratio": m.damping_ratio, "dominance": result.dominance,
          "quality": m.quality if m.quality is not None else np.nan},
         index=pd.Index(np.arange(1, m.n_modes + 1), name="mode"),
     )

@@ -110,7 +110,7 @@ def _stage(args, targets: list[str]):
     from bladetwin.run import run_nodes
 
     opts = stage_options(args, scheduler=getattr(args, "scheduler", None))
-    campaign = read_campaign(args.campaign)
+    campaign = read_campaign(args.campaign, allow_outside=args.allow_outside)
     say = (lambda m: None) if args.quiet else (lambda m: print(f"  {m}", file=sys.stderr, flush=True))
     res, runner = run_nodes(campaign, targets, opts, say)
     if not args.quiet:

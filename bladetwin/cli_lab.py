@@ -49,6 +49,8 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     from .cli_fe import parse_grid
 
     out = Path(args.out)
+    if args.seed < 0:
+        raise ValueError(f"--seed {args.seed}: expected a non-negative integer")
     kw = {}
     if args.blades is not None:
         kw["n_blades"] = args.blades

@@ -18,6 +18,8 @@ _DEFAULTS = RunOptions()
 def add_stage_options(p) -> None:
     """Add ``--cache-dir --n --scale --seed --step --features --no-bias --refine --workers --dask-workers``."""
     d = _DEFAULTS
+    p.add_argument("--allow-outside", action="store_true",
+                   help="let the manifest name files outside the campaign folder (refused by default)")
     p.add_argument("--cache-dir", default=None,
                    help="the store of stage results and reduced models (default: $BLADETWIN_CACHE or .cache/bladetwin)")
     p.add_argument("--n", type=int, default=d.n_patterns, help="synthetic patterns per flank (default: %(default)s)")
@@ -46,6 +48,7 @@ def stage_options(args, *, scheduler: str | None = None) -> RunOptions:
             ("--features", args.features, args.features >= 1, "a positive integer"),
             ("--workers", args.workers, args.workers >= 1, "a positive integer"),
             ("--refine", args.refine, args.refine >= 0, "an integer ≥ 0"),
+            ("--seed", args.seed, args.seed >= 0, "a non-negative integer"),
             ("--dask-workers", args.dask_workers, args.dask_workers is None or args.dask_workers >= 1,
              "a positive integer")):
         if not ok:

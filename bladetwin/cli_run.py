@@ -57,6 +57,7 @@ def _outs(args, campaigns) -> list[Path]:
 
 def _cmd_run(args) -> int:
     from .campaign import read_campaign
+    from .out_dir import check_out_dir, previous_summary, remove_stale
     from .outputs import write_outputs
     from .report import render_report
 
@@ -69,8 +70,10 @@ def _cmd_run(args) -> int:
         import logging
 
         logging.getLogger("ema").setLevel(logging.ERROR)
-    campaigns = [read_campaign(c) for c in args.campaign]
+    campaigns = [read_campaign(c, allow_outside=args.allow_outside) for c in args.campaign]
     outs = _outs(args, campaigns)
+    for out in outs:  # before any computation: a folder that cannot be written fails now, not in minutes
+        check_out_dir(out)
     results = _compute(campaigns, opts, args.scheduler, say)
     command = "bladetwin run " + " ".join(shlex.quote(a) for a in sys.argv[2:]) if sys.argv[1:2] == ["run"] \
         else "bladetwin run " + " ".join(args.campaign)
@@ -79,7 +82,10 @@ def _cmd_run(args) -> int:
         t_rep = time.perf_counter()
         say(f"writing tables, figures and the report to {out}")
         res.timings_s["report"] = 0.0
-        write_outputs(res, out, command=command)
+        before = previous_summary(out)
+        stale = remove_stale(out, before, write_outputs(res, out, command=command))
+        if stale:
+            say(f"removed {len(stale)} file(s) an earlier run wrote to {out} and this one did not")
         res.timings_s["report"] = time.perf_counter() - t_rep
         res.timings_s["total"] = time.perf_counter() - t0
         summaries.append(_final_timings(out, res.timings_s))

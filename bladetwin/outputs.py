@@ -69,7 +69,7 @@ def _stabilization(name: str, test, fit, out: Path) -> dict:
     """One test's stabilization diagram, drawn from its stored diagram over its FRFs."""
     from ema.plots import plot_stabilization
 
-    fig = plot_stabilization(fit.diagram, ema.read_uff(test.file), selected_hz=fit.model.frequency_hz)
+    fig = plot_stabilization(fit.diagram, ema.read_uff(test.file), selected_hz=fit.model.frequencies_hz)
     fig.axes[0].set_title(f"{test.file.name}: {fit.method.upper()}, "
                           f"{'picked by hand' if fit.picked else 'automatic selection'}, {fit.model.n_modes} modes")
     return {"file": _fig(fig, out / f"stabilization_{name}.png"),
@@ -106,7 +106,7 @@ def _ema_tables(res: RunResult, out: Path, notes: list[str]) -> list[dict]:
     if asm:
         m = asm[0].model
         _csv(out / "assembly_modes.csv", ["mode", "frequency (Hz)", "damping (%)"],
-             [[k + 1, float(m.frequency_hz[k]), float(100 * m.damping_ratio[k])] for k in range(m.n_modes)])
+             [[k + 1, float(m.frequencies_hz[k]), float(100 * m.damping_ratio[k])] for k in range(m.n_modes)])
         tables.append({"file": "assembly_modes.csv", "caption": "Full-assembly modes found by the EMA."})
     return tables
 
@@ -387,4 +387,5 @@ def summary_of(res: RunResult, command: str) -> dict:
                      "step_pct": res.options.step_pct, "n_features": res.options.n_features,
                      "refine_max_solves": res.options.refine},
         "timings_s": {k: round(v, 2) for k, v in res.timings_s.items()},
+        "stages": dict(res.stage_counts),
     })

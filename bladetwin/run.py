@@ -11,8 +11,10 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable, Iterable, Mapping
+from dataclasses import replace
 
-from .campaign import Campaign, CampaignError, check_files
+from .campaign import Campaign, CampaignError
+from .campaign_checks import check_files
 from .model import load_model
 from .stages import (
     Pipeline,
@@ -113,7 +115,9 @@ def run_campaigns(campaigns: Iterable[Campaign], opts: RunOptions | None = None,
         timings = _timings(runner.seconds, pre)
         timings["total"] = time.perf_counter() - t0
         view = _Prefixed(res, pre) if pre else res
-        out.append(gather(view, c, opts, sources[pre + "fe_model"].value, timings))
+        counts = {"computed": sum(n.startswith(pre) for n in runner.computed),
+                  "reused": sum(n.startswith(pre) for n in runner.reused)}
+        out.append(replace(gather(view, c, opts, sources[pre + "fe_model"].value, timings), stage_counts=counts))
         out[-1].notes.extend(runner.warnings)  # e.g. a damaged store entry, recomputed: in summary.json too
     return out
 

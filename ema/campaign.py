@@ -58,7 +58,7 @@ def track_modes(
     for name in names:
         model = models[name]
         if name == ref:
-            order = np.argsort(model.frequency_hz, kind="stable")
+            order = np.argsort(model.frequencies_hz, kind="stable")
             table.loc[name] = order
             continue
         pairing = pair_modes(ref_model, model, freq_window=freq_window, mac_min=mac_min)
@@ -72,7 +72,7 @@ def frequency_table(models: Mapping[str, ModalModel], **kwargs) -> pd.DataFrame:
     idx = track_modes(models, **kwargs)
     out = pd.DataFrame(np.nan, index=idx.index, columns=idx.columns, dtype=float)
     for name in idx.index:
-        f = models[name].frequency_hz
+        f = models[name].frequencies_hz
         for col in idx.columns:
             k = int(idx.loc[name, col])
             if k >= 0:
@@ -196,7 +196,7 @@ def disk_modes(model: ModalModel, sector_dofs: list[tuple[int, int]] | None = No
     nd, purity = _harmonics(model.shapes[rows])
     return pd.DataFrame(
         {
-            "frequency_hz": model.frequency_hz,
+            "frequency_hz": model.frequencies_hz,
             "damping_ratio": model.damping_ratio,
             "nodal_diameter": nd,
             "nd_purity": purity,

@@ -155,7 +155,7 @@ _Poles = tuple[np.ndarray, np.ndarray, np.ndarray]  # order, pole, vector
 def _offered(fits: list[_LocalFit], k: int) -> _Poles:
     """Poles of fit k up to its guard beyond its core (not beyond the outer edges of the first/last core)."""
     fk = fits[k]
-    f = fk.poles.frequency_hz
+    f = fk.poles.frequencies_hz
     lo_g = fk.lo - fk.guard if k > 0 else fk.lo
     hi_g = fk.hi + fk.guard if k < len(fits) - 1 else np.inf
     keep = (f >= lo_g) & (f <= hi_g)
@@ -326,7 +326,7 @@ def fit(
                   else select_near(_restrict(diagram, user_band), frequencies_hz))
         # modes of the padding, to model what lies just outside the band; the user's own choice is kept
         extra = select_auto(diagram, min_quality=min_quality)
-        extra = _subset(extra, ~inside(extra.frequency_hz))
+        extra = _subset(extra, ~inside(extra.frequencies_hz))
         selection = _merge(chosen, extra)
         protect = np.isin(selection.pole, chosen.pole)
     else:
@@ -335,7 +335,7 @@ def fit(
     with single_thread_blas():
         model, dom, dropped = _finish(frf, diagram, selection, min_dominance, refine, protect)
         if fit_band != user_band:
-            keep = inside(model.frequency_hz)
+            keep = inside(model.frequencies_hz)
             lam = model.poles[keep]
             if refine and keep.any():
                 # the band's own refinement, on the data less the fitted modes of the padding: those modes
@@ -345,7 +345,7 @@ def fit(
             dom = mode_dominance(frf, model, diagram.criteria.mac_min) if model.n_modes else np.zeros(0)
             dropped = [f for f in dropped if inside(np.array([f]))[0]]
             diagram = _restrict(diagram, user_band)
-            selection = _subset(selection, inside(selection.frequency_hz))
+            selection = _subset(selection, inside(selection.frequencies_hz))
     quality = fit_quality(frf, model) if model.n_modes else np.zeros((frf.n_outputs, frf.n_inputs))
     log.info("%s: %d modes in %.6g-%.6g Hz", diagram.method, model.n_modes, *diagram.band_hz)
     return EMAResult(diagram=diagram, selection=selection, model=model, quality=quality, dominance=dom,
@@ -390,19 +390,19 @@ def _band_mask(band: tuple[float, float]):
 
 def _restrict(diagram: StabilizationDiagram, band: tuple[float, float]) -> StabilizationDiagram:
     """The diagram's poles inside ``band``, with that band."""
-    keep = _band_mask(band)(diagram.frequency_hz)
-    fields = ("order", "pole", "frequency_hz", "damping_ratio", "vector", "stability", "mac_prev")
+    keep = _band_mask(band)(diagram.frequencies_hz)
+    fields = ("order", "pole", "frequencies_hz", "damping_ratio", "vector", "stability", "mac_prev")
     return replace(diagram, band_hz=band, **{name: getattr(diagram, name)[keep] for name in fields})
 
 
 def _subset(selection: PoleSelection, keep: np.ndarray) -> PoleSelection:
-    fields = ("pole", "frequency_hz", "damping_ratio", "quality", "vector", "n_poles")
+    fields = ("pole", "frequencies_hz", "damping_ratio", "quality", "vector", "n_poles")
     return replace(selection, **{name: getattr(selection, name)[keep] for name in fields})
 
 
 def _merge(a: PoleSelection, b: PoleSelection) -> PoleSelection:
     """Two selections as one (ascending frequency), named after the first."""
-    fields = ("pole", "frequency_hz", "damping_ratio", "quality", "vector", "n_poles")
+    fields = ("pole", "frequencies_hz", "damping_ratio", "quality", "vector", "n_poles")
     both = {name: np.concatenate([getattr(a, name), getattr(b, name)]) for name in fields}
     srt = np.argsort(np.abs(both["pole"]), kind="stable")
     return replace(a, **{name: value[srt] for name, value in both.items()})
@@ -441,7 +441,7 @@ def _finish(
             if weak.size == 0:
                 return model, dom, kept
             k = int(weak[np.argmin(dom[weak])])
-            dropped.append(float(model.frequency_hz[k]))
+            dropped.append(float(model.frequencies_hz[k]))
             rest = np.delete(np.arange(model.n_modes), k)
             model, dom, kept = lsfd_model(model.poles[rest], model.quality[rest], kept[rest])
 
@@ -537,19 +537,19 @@ def mode_dominance(frf: FRFSet, model: ModalModel, mac_min: float = 0.95) -> np.
     lines, H = data.freq_hz[valid], data.H[:, :, valid]
     if lines.size < 2:
         return plain
-    spacing = np.interp(model.frequency_hz, lines, np.gradient(lines))
-    half_width = model.damping_ratio * model.frequency_hz
+    spacing = np.interp(model.frequencies_hz, lines, np.gradient(lines))
+    half_width = model.damping_ratio * model.frequencies_hz
     resolved = 2.0 * half_width >= spacing
     distinct = (mac(model.shapes, model.shapes) < distinct_mac(mac_min)) & resolved[None, :] & resolved[:, None]
     out = plain.copy()
     for r in np.flatnonzero(distinct.any(axis=1)):
         # residual level from the lines of the half-power band, at least the nearest five
-        near = np.flatnonzero(np.abs(lines - model.frequency_hz[r]) <= max(half_width[r], 2.0 * spacing[r]))
+        near = np.flatnonzero(np.abs(lines - model.frequencies_hz[r]) <= max(half_width[r], 2.0 * spacing[r]))
         if near.size == 0:
             continue
         resid = H[:, :, near] - synthesize(model, lines[near]).H
         rms = np.sqrt(np.mean(np.abs(resid) ** 2, axis=2))
-        i = near[np.argmin(np.abs(lines[near] - model.frequency_hz[r]))]
+        i = near[np.argmin(np.abs(lines[near] - model.frequencies_hz[r]))]
         terms = _mode_terms(model, lines[i])  # (n_modes, n_outputs, n_inputs)
         own = np.abs(terms[r])
         rest = np.abs(H[:, :, i] - terms[distinct[r]].sum(axis=0)) + rms

@@ -395,7 +395,7 @@ def modal_model(
     phi, dofs, scaling = _shapes(local_residues(frf, poles, data_band, A) if local_shapes else A, poles, frf)
     f, z = modal_from_pole(poles)
     return ModalModel(
-        frequency_hz=f, damping_ratio=z, shapes=phi, dofs=dofs, quality=quality, residues=A,
+        frequencies_hz=f, damping_ratio=z, shapes=phi, dofs=dofs, quality=quality, residues=A,
         lower_residual=lower, upper_residual=upper, outputs=frf.outputs, inputs=frf.inputs, form=frf.form,
         band_hz=data_band, method=method, scaling=scaling,
     )
@@ -475,7 +475,7 @@ def dominance(frf: FRFSet, model: ModalModel) -> np.ndarray:
     out = np.zeros(model.n_modes)
     valid = data.valid_lines()
     for r in range(model.n_modes):
-        i = int(np.argmin(np.where(valid, np.abs(data.freq_hz - model.frequency_hz[r]), np.inf)))
+        i = int(np.argmin(np.where(valid, np.abs(data.freq_hz - model.frequencies_hz[r]), np.inf)))
         jw = 1j * 2 * np.pi * data.freq_hz[i]
         lam = model.poles[r]
         A = model.residues[r]

@@ -39,34 +39,48 @@ def _ratio(cross: np.ndarray, norm_a: np.ndarray, norm_b: np.ndarray) -> np.ndar
     return np.where(den > 0, np.abs(cross) ** 2 / np.where(den > 0, den, 1.0), 0.0)
 
 
-def mac(phi_a: np.ndarray, phi_b: np.ndarray) -> np.ndarray:
-    """Modal assurance criterion between two sets of shapes (columns).
+def mac(phi_a: np.ndarray, phi_b: np.ndarray, weight: np.ndarray | None = None) -> np.ndarray:
+    """Modal assurance criterion between two sets of shapes (columns), optionally mass-weighted.
 
     Parameters
     ----------
     phi_a : ndarray, shape (n_dof,) or (n_dof, n_a)
     phi_b : ndarray, shape (n_dof,) or (n_dof, n_b)
+    weight : ndarray, shape (n_dof, n_dof), optional
+        Symmetric positive definite inner-product matrix W (e.g. the mass at the compared DOFs); identity
+        if omitted.
 
     Returns
     -------
     ndarray, shape (n_a, n_b)
-        ``|phi_a^H phi_b|^2 / ((phi_a^H phi_a)(phi_b^H phi_b))``, always 2-D; 0 where a shape is zero. Each
-        shape is scaled by its largest magnitude first, so any finite scale gives the same value.
+        ``|phi_a^H W phi_b|^2 / ((phi_a^H W phi_a)(phi_b^H W phi_b))``, always 2-D; 0 where a shape is zero.
+        Each shape is scaled by its largest magnitude first, so any finite scale gives the same value.
 
     Raises
     ------
     EMAError
-        Shapes that are not (n_dof, n_modes) arrays with the same n_dof.
+        Shapes that are not (n_dof, n_modes) arrays with the same n_dof, or a weight that is not
+        (n_dof, n_dof).
     """
-    a = np.asarray(phi_a, dtype=np.complex128)
-    b = np.asarray(phi_b, dtype=np.complex128)
+    # Real shapes stay real: the dataset compares thousands of real ROM shape sets.
+    dtype = np.complex128 if np.iscomplexobj(phi_a) or np.iscomplexobj(phi_b) else np.float64
+    a = np.asarray(phi_a, dtype=dtype)
+    b = np.asarray(phi_b, dtype=dtype)
     a = a[:, None] if a.ndim == 1 else a
     b = b[:, None] if b.ndim == 1 else b
     if a.ndim != 2 or b.ndim != 2 or a.shape[0] != b.shape[0]:
         raise EMAError(f"mac: shapes {a.shape} and {b.shape} must be (n_dof, n_modes) with the same n_dof")
     a, na = _unit_max(a, axis=0)
     b, nb = _unit_max(b, axis=0)
-    return _ratio(a.conj().T @ b, na[:, None], nb[None, :])
+    if weight is None:
+        return _ratio(a.conj().T @ b, na[:, None], nb[None, :])
+    W = np.asarray(weight, dtype=np.float64)
+    if W.shape != (a.shape[0], a.shape[0]):
+        raise EMAError(f"mac: weight of shape {W.shape} must be ({a.shape[0]}, {a.shape[0]})")
+    Wa, Wb = W @ a, W @ b
+    na = np.real(np.einsum("ij,ij->j", a.conj(), Wa))
+    nb = np.real(np.einsum("ij,ij->j", b.conj(), Wb))
+    return _ratio(a.conj().T @ Wb, na[:, None], nb[None, :])
 
 
 def mac_paired(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -271,7 +285,7 @@ def pair_modes(a: ModalModel, b: ModalModel, freq_window: float = 0.1, mac_min: 
         raise EMAError(f"freq_window {freq_window}: expected > 0")
     pa, pb, _ = common_dofs(a, b)
     M = mac(pa, pb)
-    fa, fb = a.frequency_hz, b.frequency_hz
+    fa, fb = a.frequencies_hz, b.frequencies_hz
     ferr = (fb[None, :] - fa[:, None]) / fa[:, None]
     ok = (np.abs(ferr) <= freq_window) & (M >= mac_min)
     big = 1e6

@@ -11,12 +11,12 @@ from .frf import DOF, FRF_FORMS, check_dof
 __all__ = ["ModalModel", "pole_from_modal", "modal_from_pole"]
 
 
-def pole_from_modal(frequency_hz: np.ndarray, damping_ratio: np.ndarray) -> np.ndarray:
+def pole_from_modal(frequencies_hz: np.ndarray, damping_ratio: np.ndarray) -> np.ndarray:
     """Continuous-time poles ``lambda = -zeta*omega_n + j*omega_n*sqrt(1 - zeta**2)`` in rad/s.
 
     Parameters
     ----------
-    frequency_hz : array_like, shape (n,)
+    frequencies_hz : array_like, shape (n,)
         Undamped natural frequencies in Hz.
     damping_ratio : array_like, shape (n,)
         Viscous damping ratios (0.01 = 1 %).
@@ -25,7 +25,7 @@ def pole_from_modal(frequency_hz: np.ndarray, damping_ratio: np.ndarray) -> np.n
     -------
     ndarray of complex128, shape (n,)
     """
-    wn = 2.0 * np.pi * np.asarray(frequency_hz, dtype=np.float64)
+    wn = 2.0 * np.pi * np.asarray(frequencies_hz, dtype=np.float64)
     z = np.asarray(damping_ratio, dtype=np.float64)
     return -z * wn + 1j * wn * np.sqrt(np.clip(1.0 - z**2, 0.0, None))
 
@@ -39,7 +39,7 @@ def modal_from_pole(pole: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
     Returns
     -------
-    frequency_hz, damping_ratio : ndarray, shape (n,)
+    frequencies_hz, damping_ratio : ndarray, shape (n,)
         ``|lambda| / 2 pi`` and ``-Re(lambda) / |lambda|``.
     """
     pole = np.asarray(pole, dtype=np.complex128)
@@ -55,7 +55,7 @@ class ModalModel:
 
     Attributes
     ----------
-    frequency_hz : ndarray, shape (n_modes,)
+    frequencies_hz : ndarray, shape (n_modes,)
         Undamped natural frequencies in Hz, ascending.
     damping_ratio : ndarray, shape (n_modes,)
         Viscous damping ratios.
@@ -82,7 +82,7 @@ class ModalModel:
         "mass" or "unit".
     """
 
-    frequency_hz: np.ndarray
+    frequencies_hz: np.ndarray
     damping_ratio: np.ndarray
     shapes: np.ndarray
     dofs: tuple[DOF, ...]
@@ -98,7 +98,7 @@ class ModalModel:
     scaling: str = "unit"
 
     def __post_init__(self) -> None:
-        f = np.asarray(self.frequency_hz, dtype=np.float64).reshape(-1)
+        f = np.asarray(self.frequencies_hz, dtype=np.float64).reshape(-1)
         z = np.asarray(self.damping_ratio, dtype=np.float64).reshape(-1)
         phi = np.asarray(self.shapes, dtype=np.complex128)
         if phi.ndim == 1:
@@ -114,7 +114,7 @@ class ModalModel:
             raise ValueError(f"ModalModel: form {self.form!r} not one of {sorted(FRF_FORMS)}")
         for arr in (f, z, phi):
             arr.setflags(write=False)
-        object.__setattr__(self, "frequency_hz", f)
+        object.__setattr__(self, "frequencies_hz", f)
         object.__setattr__(self, "damping_ratio", z)
         object.__setattr__(self, "shapes", phi)
         object.__setattr__(self, "dofs", dofs)
@@ -136,19 +136,19 @@ class ModalModel:
 
     @property
     def n_modes(self) -> int:
-        return int(self.frequency_hz.size)
+        return int(self.frequencies_hz.size)
 
     @property
     def poles(self) -> np.ndarray:
         """Continuous-time poles in rad/s, shape (n_modes,), positive imaginary part."""
-        return pole_from_modal(self.frequency_hz, self.damping_ratio)
+        return pole_from_modal(self.frequencies_hz, self.damping_ratio)
 
     def take(self, index: np.ndarray | list[int]) -> ModalModel:
         """A model with the modes ``index`` (in that order)."""
         idx = np.asarray(index, dtype=int).reshape(-1)
         return replace(
             self,
-            frequency_hz=self.frequency_hz[idx],
+            frequencies_hz=self.frequencies_hz[idx],
             damping_ratio=self.damping_ratio[idx],
             shapes=self.shapes[:, idx],
             quality=None if self.quality is None else self.quality[idx],
@@ -157,13 +157,13 @@ class ModalModel:
 
     def sorted(self) -> ModalModel:
         """The model with modes in ascending frequency."""
-        return self.take(np.argsort(self.frequency_hz, kind="stable"))
+        return self.take(np.argsort(self.frequencies_hz, kind="stable"))
 
     def as_records(self) -> list[dict]:
         """One dict per mode: ``frequency_hz``, ``damping_ratio`` and ``quality`` when known (JSON-ready)."""
         out = []
         for m in range(self.n_modes):
-            rec = {"frequency_hz": float(self.frequency_hz[m]), "damping_ratio": float(self.damping_ratio[m])}
+            rec = {"frequency_hz": float(self.frequencies_hz[m]), "damping_ratio": float(self.damping_ratio[m])}
             if self.quality is not None:
                 rec["quality"] = float(self.quality[m])
             out.append(rec)

@@ -75,8 +75,8 @@ class PolePicker:
     def picks(self) -> tuple[tuple[int, float], ...]:
         """Picked poles as ``(order, frequency_hz)``, sorted by frequency."""
         d = self._diagram
-        idx = sorted(self._picked, key=lambda k: d.frequency_hz[k])
-        return tuple((int(d.order[k]), float(d.frequency_hz[k])) for k in idx)
+        idx = sorted(self._picked, key=lambda k: d.frequencies_hz[k])
+        return tuple((int(d.order[k]), float(d.frequencies_hz[k])) for k in idx)
 
     def selection(self) -> PoleSelection:
         """The picks as a :class:`PoleSelection` (via :func:`select_picks`)."""
@@ -114,11 +114,11 @@ class PolePicker:
         cand = np.flatnonzero(self._diagram.order == order)
         if cand.size == 0:
             raise ValueError(f"initial pick ({order}, {f} Hz): order {order} has no pole in the diagram")
-        return int(cand[np.argmin(np.abs(self._diagram.frequency_hz[cand] - f))])
+        return int(cand[np.argmin(np.abs(self._diagram.frequencies_hz[cand] - f))])
 
     def _nearest_pole(self, x_px: float, y_px: float) -> int | None:
         d = self._diagram
-        xy = self.ax.transData.transform(np.column_stack([d.frequency_hz, d.order]))
+        xy = self.ax.transData.transform(np.column_stack([d.frequencies_hz, d.order]))
         dist = np.hypot(xy[:, 0] - x_px, xy[:, 1] - y_px)
         near = np.flatnonzero(dist <= self._snap_px)
         if near.size == 0:
@@ -130,7 +130,7 @@ class PolePicker:
     def _redraw(self) -> None:
         d = self._diagram
         idx = np.asarray(self._picked, dtype=int)
-        self._marks.set_data(d.frequency_hz[idx], d.order[idx])
+        self._marks.set_data(d.frequencies_hz[idx], d.order[idx])
         freqs = ", ".join(f"{f:.4g}" for _, f in self.picks) or "none"
         self.ax.set_title(f"{len(idx)} picked (Hz): {freqs}\nleft click: pick / unpick, right click: drop", fontsize=9)
         self.fig.canvas.draw_idle()

@@ -152,13 +152,13 @@ class Picks:
             if not _is_int(order) or order < 1:
                 raise EMAError(f"picks[{k}].order {_short(order)}: expected a positive integer")
             if not _is_real(freq):
-                raise EMAError(f"picks[{k}].frequency_hz {_short(freq)}: expected a number (Hz)")
+                raise EMAError(f"picks[{k}].frequencies_hz {_short(freq)}: expected a number (Hz)")
             try:
                 f = float(freq)
             except OverflowError:
                 f = math.inf
             if not (math.isfinite(f) and f > 0):
-                raise EMAError(f"picks[{k}].frequency_hz {_short(freq)}: expected a positive, finite frequency (Hz)")
+                raise EMAError(f"picks[{k}].frequencies_hz {_short(freq)}: expected a positive, finite frequency (Hz)")
             if band is not None and not band[0] <= f <= band[1]:
                 raise EMAError(
                     f"picks[{k}] ({int(order)}, {f:g} Hz): frequency outside band_hz {band[0]:g}-{band[1]:g} Hz"
@@ -387,10 +387,10 @@ def fit_with_picks(frf: FRFSet, picks: Picks, freq_tol: float = 0.01) -> EMAResu
         if cand.size == 0:
             raise EMAError(f"{where}: {name}: order {order} has no pole in the diagram "
                            f"({d.method}, {d.band_hz[0]:g}-{d.band_hz[1]:g} Hz)")
-        k = int(cand[np.argmin(np.abs(d.frequency_hz[cand] - f))])
-        if abs(d.frequency_hz[k] - f) > freq_tol * f:
+        k = int(cand[np.argmin(np.abs(d.frequencies_hz[cand] - f))])
+        if abs(d.frequencies_hz[k] - f) > freq_tol * f:
             raise EMAError(f"{where}: {name}: no pole of order {order} within {freq_tol:.3g} of it "
-                           f"(nearest {d.frequency_hz[k]:.6g} Hz); were the picks made on this file?")
+                           f"(nearest {d.frequencies_hz[k]:.6g} Hz); were the picks made on this file?")
         if k in taken:
             o2, f2 = taken[k]
             raise EMAError(f"{where}: {name} and pick ({o2}, {f2:.6g} Hz) take the same pole")

@@ -49,7 +49,7 @@ def plot_stabilization(
     fig, ax = _axes(ax, (10, 5))
     for cls, (marker, color, size) in _STYLE.items():
         sel = diagram.stability == cls
-        ax.plot(diagram.frequency_hz[sel], diagram.order[sel], linestyle="none", marker=marker, color=color,
+        ax.plot(diagram.frequencies_hz[sel], diagram.order[sel], linestyle="none", marker=marker, color=color,
                 markersize=size, label=CLASS_NAMES[cls])
     ax.set_xlabel("frequency [Hz]")
     ax.set_ylabel("model order")
@@ -102,7 +102,7 @@ def plot_frf_fit(frf: FRFSet, model: ModalModel, output: int = 0, input: int = 0
     syn = synthesize(model, f).H[output, input]
     ax.semilogy(f, np.abs(data.H[output, input, mask]), color="k", linewidth=0.8, label="measured")
     ax.semilogy(f, np.abs(syn), color="tab:red", linewidth=0.8, linestyle="--", label="synthesised")
-    for fr in model.frequency_hz:
+    for fr in model.frequencies_hz:
         ax.axvline(fr, color="0.8", linewidth=0.5)
     ax.set_xlabel("frequency [Hz]")
     ax.set_ylabel(f"|H| ({model.form})")

@@ -101,7 +101,7 @@ class PoleSet:
         object.__setattr__(self, "band_hz", (float(self.band_hz[0]), float(self.band_hz[1])))
 
     @property
-    def frequency_hz(self) -> np.ndarray:
+    def frequencies_hz(self) -> np.ndarray:
         """Undamped natural frequency of each pole in Hz, shape (n_poles,)."""
         return np.abs(self.pole) / (2.0 * np.pi)
 

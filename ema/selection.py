@@ -38,7 +38,7 @@ class PoleSelection:
     ----------
     pole : ndarray of complex128, shape (n_modes,)
         Continuous-time poles in rad/s, ascending frequency.
-    frequency_hz, damping_ratio : ndarray, shape (n_modes,)
+    frequencies_hz, damping_ratio : ndarray, shape (n_modes,)
     quality : ndarray, shape (n_modes,)
         Score in [0, 1]: fraction of the model orders in which the mode is found, times the mean MAC of
         its poles' vectors with the representative vector (1 for explicit picks).
@@ -51,7 +51,7 @@ class PoleSelection:
     """
 
     pole: np.ndarray
-    frequency_hz: np.ndarray
+    frequencies_hz: np.ndarray
     damping_ratio: np.ndarray
     quality: np.ndarray
     vector: np.ndarray
@@ -59,7 +59,7 @@ class PoleSelection:
     how: str
 
     def __post_init__(self) -> None:
-        for name in ("pole", "frequency_hz", "damping_ratio", "quality", "vector", "n_poles"):
+        for name in ("pole", "frequencies_hz", "damping_ratio", "quality", "vector", "n_poles"):
             arr = np.array(getattr(self, name))
             arr.setflags(write=False)
             object.__setattr__(self, name, arr)
@@ -71,7 +71,7 @@ class PoleSelection:
 
 def _empty(n_vec: int, how: str) -> PoleSelection:
     return PoleSelection(
-        pole=np.zeros(0, complex), frequency_hz=np.zeros(0), damping_ratio=np.zeros(0), quality=np.zeros(0),
+        pole=np.zeros(0, complex), frequencies_hz=np.zeros(0), damping_ratio=np.zeros(0), quality=np.zeros(0),
         vector=np.zeros((0, n_vec), complex), n_poles=np.zeros(0, int), how=how,
     )
 
@@ -121,7 +121,7 @@ def cluster_poles(
     idx = np.flatnonzero(diagram.stability >= min_class)
     if idx.size == 0:
         return idx, np.zeros(0, dtype=int)
-    f = diagram.frequency_hz[idx]
+    f = diagram.frequencies_hz[idx]
     srt = np.argsort(f, kind="stable")
     idx, f = idx[srt], f[srt]
     lam = diagram.pole[idx]
@@ -173,9 +173,9 @@ def _representative(diagram: StabilizationDiagram, members: np.ndarray) -> tuple
     """Pole, vector and mean MAC of a cluster: medians over the upper half of its orders."""
     orders = diagram.order[members]
     top = members[orders >= np.median(orders)]
-    f = float(np.median(diagram.frequency_hz[top]))
+    f = float(np.median(diagram.frequencies_hz[top]))
     z = float(np.median(diagram.damping_ratio[top]))
-    dev = np.abs(diagram.frequency_hz[top] - f) / f + np.abs(diagram.damping_ratio[top] - z) / max(z, 1e-9)
+    dev = np.abs(diagram.frequencies_hz[top] - f) / f + np.abs(diagram.damping_ratio[top] - z) / max(z, 1e-9)
     k = top[np.argmin(dev)]
     v = diagram.vector[k]
     mac_v = mac(diagram.vector[members].T, v)[:, 0]
@@ -199,7 +199,7 @@ def _build(diagram: StabilizationDiagram, groups: list[np.ndarray], how: str) ->
     wn = np.abs(poles)
     return PoleSelection(
         pole=poles,
-        frequency_hz=wn / (2 * np.pi),
+        frequencies_hz=wn / (2 * np.pi),
         damping_ratio=-poles.real / wn,
         quality=np.asarray(qual)[srt],
         vector=np.vstack(vecs)[srt],
@@ -241,9 +241,9 @@ def select_auto(
     sel = _build(diagram, groups, "auto")
     f_lo, f_hi = diagram.band_hz
     margin = edge * (f_hi - f_lo)
-    keep = (sel.quality >= min_quality) & (sel.frequency_hz >= f_lo + margin) & (sel.frequency_hz <= f_hi - margin)
+    keep = (sel.quality >= min_quality) & (sel.frequencies_hz >= f_lo + margin) & (sel.frequencies_hz <= f_hi - margin)
     return PoleSelection(
-        pole=sel.pole[keep], frequency_hz=sel.frequency_hz[keep], damping_ratio=sel.damping_ratio[keep],
+        pole=sel.pole[keep], frequencies_hz=sel.frequencies_hz[keep], damping_ratio=sel.damping_ratio[keep],
         quality=sel.quality[keep], vector=sel.vector[keep], n_poles=sel.n_poles[keep], how="auto",
     )
 
@@ -275,18 +275,18 @@ def select_near(
         if idx.size:
             for k in range(int(label.max()) + 1):
                 members = idx[label == k]
-                fm = float(np.median(diagram.frequency_hz[members]))
+                fm = float(np.median(diagram.frequencies_hz[members]))
                 if abs(fm - ft) <= window * ft and (best is None or members.size > best.size):
                     best = members
         if best is None:
-            near = np.flatnonzero(np.abs(diagram.frequency_hz - ft) <= window * ft)
+            near = np.flatnonzero(np.abs(diagram.frequencies_hz - ft) <= window * ft)
             if near.size == 0:
                 raise EMAError(
                     f"no pole within {window:.1%} of {ft:g} Hz in the stabilization diagram "
                     f"(band {diagram.band_hz[0]:g}-{diagram.band_hz[1]:g} Hz)"
                 )
             top = near[diagram.order[near] == diagram.order[near].max()]
-            best = top[[int(np.argmin(np.abs(diagram.frequency_hz[top] - ft)))]]
+            best = top[[int(np.argmin(np.abs(diagram.frequencies_hz[top] - ft)))]]
         groups.append(best)
     return _build(diagram, groups, "near")
 
@@ -304,7 +304,7 @@ def select_picks(diagram: StabilizationDiagram, picks: Sequence[tuple[int, float
         cand = np.flatnonzero(diagram.order == int(order))
         if cand.size == 0:
             raise EMAError(f"pick ({order}, {ft} Hz): order {order} has no pole in the diagram")
-        chosen.append(int(cand[np.argmin(np.abs(diagram.frequency_hz[cand] - float(ft)))]))
+        chosen.append(int(cand[np.argmin(np.abs(diagram.frequencies_hz[cand] - float(ft)))]))
     if not chosen:
         return _empty(diagram.vector.shape[1], "picks")
     chosen_arr = np.asarray(chosen)
@@ -312,7 +312,7 @@ def select_picks(diagram: StabilizationDiagram, picks: Sequence[tuple[int, float
     srt = np.argsort(np.abs(poles), kind="stable")
     chosen_arr = chosen_arr[srt]
     return PoleSelection(
-        pole=diagram.pole[chosen_arr], frequency_hz=diagram.frequency_hz[chosen_arr],
+        pole=diagram.pole[chosen_arr], frequencies_hz=diagram.frequencies_hz[chosen_arr],
         damping_ratio=diagram.damping_ratio[chosen_arr], quality=np.ones(chosen_arr.size),
         vector=diagram.vector[chosen_arr], n_poles=np.ones(chosen_arr.size, dtype=int), how="picks",
     )

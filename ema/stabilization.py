@@ -72,7 +72,7 @@ class StabilizationDiagram:
     order : ndarray of int, shape (n_poles,)
     pole : ndarray of complex128, shape (n_poles,)
         Continuous-time poles in rad/s.
-    frequency_hz, damping_ratio : ndarray, shape (n_poles,)
+    frequencies_hz, damping_ratio : ndarray, shape (n_poles,)
     vector : ndarray of complex128, shape (n_poles, n_vec)
     stability : ndarray of int, shape (n_poles,)
         :data:`UNSTABLE` (new), :data:`STABLE_F`, :data:`STABLE_FD` or :data:`STABLE_FDV`.
@@ -87,7 +87,7 @@ class StabilizationDiagram:
     orders: tuple[int, ...]
     order: np.ndarray
     pole: np.ndarray
-    frequency_hz: np.ndarray
+    frequencies_hz: np.ndarray
     damping_ratio: np.ndarray
     vector: np.ndarray
     stability: np.ndarray
@@ -97,7 +97,7 @@ class StabilizationDiagram:
     inputs: tuple[DOF, ...] = ()
 
     def __post_init__(self) -> None:
-        for name in ("order", "pole", "frequency_hz", "damping_ratio", "vector", "stability", "mac_prev"):
+        for name in ("order", "pole", "frequencies_hz", "damping_ratio", "vector", "stability", "mac_prev"):
             arr = np.array(getattr(self, name))
             arr.setflags(write=False)
             object.__setattr__(self, name, arr)
@@ -180,7 +180,7 @@ def stabilize(poles: PoleSet, criteria: StabilityCriteria | None = None) -> Stab
     StabilizationDiagram
     """
     crit = criteria or StabilityCriteria()
-    f, z = poles.frequency_hz, poles.damping_ratio
+    f, z = poles.frequencies_hz, poles.damping_ratio
     lo, hi = crit.damping_range
     keep = (z >= lo) & (z <= hi) & (f > 0)
     order, pole, vec = poles.order[keep], poles.pole[keep], poles.vector[keep]
@@ -212,7 +212,7 @@ def stabilize(poles: PoleSet, criteria: StabilityCriteria | None = None) -> Stab
         orders=poles.orders,
         order=order,
         pole=pole,
-        frequency_hz=f,
+        frequencies_hz=f,
         damping_ratio=z,
         vector=vec,
         stability=stab,

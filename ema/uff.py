@@ -557,7 +557,7 @@ def read_modes(path: str | os.PathLike) -> ModalModel:
         shapes.append(values.astype(np.complex128))
     assert dofs is not None
     return ModalModel(
-        frequency_hz=np.asarray(freqs), damping_ratio=np.asarray(damps), shapes=np.column_stack(shapes), dofs=dofs
+        frequencies_hz=np.asarray(freqs), damping_ratio=np.asarray(damps), shapes=np.column_stack(shapes), dofs=dofs
     )
 
 
@@ -719,7 +719,7 @@ def write_modes(path: str | os.PathLike, model: ModalModel, id1: str = "bladetwi
                 id1=id1[:80], id2="NONE", id3="NONE", id4="NONE", id5="NONE",
                 model_type=1, analysis_type=2, data_ch=2 if n_comp == 3 else 3, spec_data_type=8,
                 data_type=2, n_data_per_node=n_comp, load_case=1, mode_n=m + 1,
-                freq=float(model.frequency_hz[m]), modal_m=1.0,
+                freq=float(model.frequencies_hz[m]), modal_m=1.0,
                 modal_damp_vis=float(model.damping_ratio[m]), modal_damp_his=0.0,
                 node_nums=np.asarray(nodes, dtype=int), **kw,
             )

@@ -41,6 +41,7 @@ from pathlib import Path
 import numpy as np
 from tqdm.auto import tqdm
 
+from ema.mac import mac
 from rom.craig_bampton import CraigBamptonModel
 from rom.fileio import atomic_path
 from rom.modal import dense_modes, single_thread_blas
@@ -59,7 +60,6 @@ from .sensitivity import (
     check_reference,
     check_weights,
     common_coords,
-    mac_matrix,
     model_key,
     pencil_checked,
     summarize,
@@ -532,7 +532,7 @@ def solve_pair(plan: DatasetPlan, i: int, j: int) -> PairResult:
         K0, M = pencil_checked(plan.disk, plan.blade, plan.PL[i], plan.PR[j], i, j, plan.formulation)
         base = _ritz(K0, M, plan.idx, plan.w2, plan.n_modes + plan.n_extra, plan.method, plan.tol, plan.n_modes,
                      (i, j))
-        rows, vals = assign_modes(mac_matrix(plan.ref_shapes, base.shapes0[plan.common], plan.W))
+        rows, vals = assign_modes(mac(plan.ref_shapes, base.shapes0[plan.common], weight=plan.W))
         n = plan.n_rows
         freq, bound = np.empty((n, plan.n_modes)), np.empty(n)
         mac_min, fallback = np.empty(n), np.zeros(n, bool)

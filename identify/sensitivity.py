@@ -23,7 +23,7 @@ Output
     k-NN's ``weights="sensitivity"``).
 
 The helpers that assemble tuned pencils and pair modes (:func:`d1b_pencil`, :func:`update_index`,
-:func:`mac_matrix`, :func:`assign_modes`, :func:`model_key`) are shared with :mod:`identify.dataset`.
+:func:`ema.mac` (mass-weighted), :func:`assign_modes`, :func:`model_key`) are shared with :mod:`identify.dataset`.
 """
 
 from __future__ import annotations
@@ -37,6 +37,7 @@ import numpy as np
 from scipy.optimize import linear_sum_assignment
 from tqdm.auto import tqdm
 
+from ema.mac import mac as ema_mac
 from rom.cache import hash_inputs
 from rom.contact import ContactPattern
 from rom.craig_bampton import CraigBamptonModel
@@ -54,7 +55,6 @@ __all__ = [
     "check_patterns",
     "d1b_pencil",
     "update_index",
-    "mac_matrix",
     "assign_modes",
     "model_key",
     "MAC_WARN",
@@ -208,29 +208,6 @@ def d1b_pencil(disk, blade, L, R, *, formulation: str = "exact", delta=None) -> 
         asm = assemble_d1b(disk, blade, ContactPattern(L, R), delta=0.0 if delta is None else delta,
                            formulation=formulation)
     return asm.K, asm.M
-
-
-def mac_matrix(A: np.ndarray, B: np.ndarray, W: np.ndarray | None = None) -> np.ndarray:
-    """MAC between the columns of A and B, weighted by the symmetric positive definite W.
-
-    Parameters
-    ----------
-    A : ndarray, shape (n, a)
-    B : ndarray, shape (n, b)
-    W : ndarray, shape (n, n), optional
-        Inner-product matrix (e.g. a mass matrix); identity if omitted.
-
-    Returns
-    -------
-    ndarray, shape (a, b)
-        ``(aᵀ W b)² / ((aᵀ W a)(bᵀ W b))``, in [0, 1].
-    """
-    WB = B if W is None else W @ B
-    WA = A if W is None else W @ A
-    num = (A.T @ WB) ** 2
-    da = np.einsum("ij,ij->j", A, WA)
-    db = np.einsum("ij,ij->j", B, WB)
-    return num / np.outer(da, db)
 
 
 def assign_modes(mac: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -396,7 +373,7 @@ def sensitivity(
                 common = common_coords(K.shape[0], disk, blade)
                 W = M[np.ix_(common, common)]
                 ref_shapes = dm.shapes[common, :n_modes]
-            cmac = mac_matrix(ref_shapes, dm.shapes[common], W)
+            cmac = ema_mac(ref_shapes, dm.shapes[common], weight=W)
         cols, vals = assign_modes(cmac)
         freq[i, j], index[i, j], mac[i, j] = dm.frequencies_hz[cols], cols, vals
     warn_low_mac(mac, "the sensitivity maps")

@@ -13,13 +13,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ema.mac import mac
 from rom.contact import ContactPattern
 from rom.craig_bampton import CraigBamptonModel
 from rom.modal import dense_modes, single_thread_blas
 from rom.rubin import RubinModel
 
 from .errors import IdentifyError
-from .sensitivity import assign_modes, common_coords, d1b_pencil, mac_matrix, model_key
+from .sensitivity import assign_modes, common_coords, d1b_pencil, model_key
 
 __all__ = ["ModeTracker", "TrackedModes"]
 
@@ -104,5 +105,5 @@ class ModeTracker:
         with single_thread_blas():
             dm = dense_modes(K, M, n_cand, max_rigid=6)
             common = common_coords(K.shape[0], self.disk, self.blade)
-            cols, vals = assign_modes(mac_matrix(self.shapes, dm.shapes[common], self.weight))
+            cols, vals = assign_modes(mac(self.shapes, dm.shapes[common], weight=self.weight))
         return TrackedModes(np.asarray(dm.frequencies_hz[cols], np.float64), vals)

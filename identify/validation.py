@@ -261,7 +261,7 @@ def _modes(name: str, m) -> tuple[np.ndarray, np.ndarray, object]:
     elif hasattr(m, "meas_shapes"):
         f, phi, labels = m.frequencies_hz, m.meas_shapes, [tuple(lab) for lab in m.meas_labels]
     elif hasattr(m, "dofs"):
-        f, phi, labels = m.frequency_hz, m.shapes, "dofs"
+        f, phi, labels = m.frequencies_hz, m.shapes, "dofs"
     else:
         raise IdentifyError(f"{name}: expected (frequencies_hz, shapes), rom AssemblyModes or ema ModalModel, "
                             f"got {type(m).__name__}")

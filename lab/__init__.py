@@ -18,7 +18,6 @@ from .rig import RigSetup, dof_label, measure, peak_snr, synthesize_mobility
 from .truth import (
     BladeVariation,
     TruthAssembly,
-    TruthModes,
     TruthParams,
     TruthTwin,
     assemble_truth,
@@ -38,7 +37,6 @@ __all__ = [
     "RigSetup",
     "TruePressure",
     "TruthAssembly",
-    "TruthModes",
     "TruthParams",
     "TruthTwin",
     "assemble_truth",

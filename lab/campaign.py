@@ -112,8 +112,10 @@ def _solve_parallel(twin, jobs: list[tuple], workers: int) -> list[tuple]:
 def default_known_joints(n_blades: int) -> tuple[int, ...]:
     """Filmed joints when none are given: up to 5 (paper §6.1), spread evenly, never all of them."""
     n_known = min(5, max(2, n_blades // 3), n_blades - 1)
-    pos = np.linspace(1, n_blades, n_known + 2)[1:-1]
-    return tuple(int(k) for k in np.unique(np.round(pos).astype(int)))
+    known = np.unique(np.round(np.linspace(1, n_blades, n_known + 2)[1:-1]).astype(int))
+    if known.size < n_known:  # few blades: interior positions round together (3 blades: 2 and 2), use the ends
+        known = np.unique(np.round(np.linspace(1, n_blades, n_known)).astype(int))
+    return tuple(int(k) for k in known)
 
 
 @dataclass(frozen=True)
@@ -154,6 +156,8 @@ class CampaignSpec:
                or not 1 <= k <= self.n_blades]
         if bad or not known or len(set(known)) != len(known):
             raise ValueError(f"known joints {list(known)}: expected distinct joint numbers in 1..{self.n_blades}")
+        if len(known) < 2:  # `bladetwin run` refuses a campaign with fewer: the PCA sampler needs two films a flank
+            raise ValueError(f"known joints {list(known)}: expected at least 2 filmed joints")
         return tuple(sorted(int(k) for k in known))
 
 
@@ -218,7 +222,8 @@ def simulate_campaign(
     out.parent.mkdir(parents=True, exist_ok=True)
     tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
     try:
-        n_files = _write(spec, params, known, tmp, say)
+        os.chmod(tmp, 0o777 & ~_umask())  # mkdtemp makes it 0700; the campaign is an ordinary folder
+        n_files = _write(spec, params, known, tmp, say, out)
         if out.exists():
             out.rmdir()
         tmp.rename(out)
@@ -227,9 +232,16 @@ def simulate_campaign(
     return CampaignInfo(out, n_files, out / "truth" / "truth.json")
 
 
-def _write(spec: CampaignSpec, params: AcademicParams, known: tuple[int, ...], root: Path, say) -> int:
-    """Simulate the campaign into ``root``: every test, the film scans, the manifest and the truth files."""
-    writer = _CampaignWriter(spec, params, known, root, say)
+def _umask() -> int:
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
+
+
+def _write(spec: CampaignSpec, params: AcademicParams, known: tuple[int, ...], root: Path, say, out: Path) -> int:
+    """Simulate the campaign into ``root`` (renamed ``out`` when done): every test, the film scans, the manifest
+    and the truth files."""
+    writer = _CampaignWriter(spec, params, known, root, say, out)
     writer.component_tests()
     writer.assembly_test()
     writer.films()
@@ -260,7 +272,8 @@ class _CampaignWriter:
     """One campaign being written into ``root``: the truth twin, its random streams, and the manifest and truth
     documents as the tests and films fill them in (always in the same order, so a seed gives the same files)."""
 
-    def __init__(self, spec: CampaignSpec, params: AcademicParams, known: tuple[int, ...], root: Path, say):
+    def __init__(self, spec: CampaignSpec, params: AcademicParams, known: tuple[int, ...], root: Path, say,
+                 out: Path):
         self.spec, self.params, self.known, self.root, self.say = spec, params, known, root, say
         rng = np.random.default_rng(spec.seed)
         # Independent streams per purpose, so that changing one part (say, the film grain) leaves the others.
@@ -273,7 +286,7 @@ class _CampaignWriter:
         self.twin = make_truth_twin(bd, self.patterns, rng_truth, spec.truth)
         self.manifest: dict = {
             "campaign": {"name": spec.name, "kind": "virtual", "n_blades": params.n_blades, "grid": list(params.grid),
-                         "known_joints": list(known), "generated_by": spec.command(f"measurements/{spec.name}"),
+                         "known_joints": list(known), "generated_by": spec.command(out),
                          # what every UFF of the rig holds; `bladetwin run` checks each file against it
                          "frf_units": "m/s/N"},
             "model": {"family": "academic", "level": params.level, "n_blades": params.n_blades,

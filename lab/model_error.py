@@ -80,12 +80,12 @@ def _pair(measured: ema.ModalModel, model: ema.ModalModel, n_first: int | None =
     mac : ndarray
     """
     k = measured.n_modes if n_first is None else min(n_first, measured.n_modes)
-    measured = ema.ModalModel(measured.frequency_hz[:k], measured.damping_ratio[:k], measured.shapes[:, :k],
+    measured = ema.ModalModel(measured.frequencies_hz[:k], measured.damping_ratio[:k], measured.shapes[:, :k],
                               measured.dofs)
     if by == "mac":
         pr = ema.pair_modes(measured, model, freq_window=0.05, mac_min=0.3)
         return pr.pairs[:, 0], pr.pairs[:, 1], pr.freq_error, pr.mac
-    fa, fb = measured.frequency_hz, model.frequency_hz
+    fa, fb = measured.frequencies_hz, model.frequencies_hz
     rows, cols = ema.pair_by_frequency(fa, fb, 0.05)
     rel = fb[cols] / fa[rows] - 1
     pa, pb, _ = common_dofs(measured, model)
@@ -140,7 +140,7 @@ def case_c(
     n_rom = measured.n_modes + params.n_blades
     while True:
         rom_modes = solve_full(bd, blade, {s + 1: p for s, p in enumerate(patterns)}, delta, n_modes=n_rom)
-        if rom_modes.frequencies_hz[-1] >= 1.05 * measured.frequency_hz.max() or n_rom > 4 * measured.n_modes:
+        if rom_modes.frequencies_hz[-1] >= 1.05 * measured.frequencies_hz.max() or n_rom > 4 * measured.n_modes:
             break
         n_rom += params.n_blades
     _, _, rel, mac = _pair(measured, rom_modal_model(rom_modes))

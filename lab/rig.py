@@ -26,8 +26,7 @@ import numpy as np
 
 from ema.frf import FRFSet
 from ema.numbering import dof_label, rom_modal_model
-
-from .truth import TruthModes
+from rom.fe_assembly import AssemblyModes
 
 __all__ = ["RigSetup", "dof_label", "rom_modal_model", "synthesize_mobility", "measure", "peak_snr", "MIN_SNR"]
 
@@ -68,13 +67,13 @@ class RigSetup:
 
 
 def synthesize_mobility(
-    modes: TruthModes, zeta: np.ndarray, freq_hz: np.ndarray, outputs: Sequence[int], inputs: Sequence[int]
+    modes: AssemblyModes, zeta: np.ndarray, freq_hz: np.ndarray, outputs: Sequence[int], inputs: Sequence[int]
 ) -> np.ndarray:
     """Noise-free mobility FRFs (m/s/N) between measurement DOFs of ``modes``.
 
     Parameters
     ----------
-    modes : TruthModes
+    modes : AssemblyModes
     zeta : ndarray, shape (n_modes,)
         Modal damping ratio of each elastic mode.
     freq_hz : ndarray, shape (n_freq,)
@@ -91,13 +90,16 @@ def synthesize_mobility(
     out, inp = np.asarray(outputs), np.asarray(inputs)
     phi_o, phi_i = modes.meas_shapes[out], modes.meas_shapes[inp]
     H = np.einsum("or,ir,rf->oif", phi_o, phi_i, 1.0 / den)
-    # Rigid-body modes: receptance −1/ω² each (free–free on soft foam: the mass line).
-    H += np.einsum("or,ir->oi", modes.rigid_shapes[out], modes.rigid_shapes[inp])[:, :, None] / (-(w**2))[None, None]
+    # Rigid-body modes: receptance −1/ω² each (free–free on soft foam: the mass line). A mode set without
+    # them (a ROM solve) is a grounded model: no mass line.
+    if modes.rigid_shapes is not None:
+        rigid = np.einsum("or,ir->oi", modes.rigid_shapes[out], modes.rigid_shapes[inp])
+        H += rigid[:, :, None] / (-(w**2))[None, None]
     return H * (1j * w)[None, None, :]
 
 
 def measure(
-    modes: TruthModes,
+    modes: AssemblyModes,
     zeta: np.ndarray,
     setup: RigSetup,
     rng: np.random.Generator,
@@ -108,7 +110,7 @@ def measure(
 
     Parameters
     ----------
-    modes : TruthModes
+    modes : AssemblyModes
         Modes of the tested assembly, computed to well above ``setup.band_hz``.
     zeta : ndarray, shape (n_modes,)
     setup : RigSetup
@@ -134,7 +136,7 @@ def measure(
 
 
 def peak_snr(
-    modes: TruthModes, zeta: np.ndarray, setup: RigSetup, outputs: Sequence[int], inputs: Sequence[int]
+    modes: AssemblyModes, zeta: np.ndarray, setup: RigSetup, outputs: Sequence[int], inputs: Sequence[int]
 ) -> np.ndarray:
     """Each mode's best resonance peak over the noise floor, shape (n_modes,).
 

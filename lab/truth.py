@@ -28,6 +28,7 @@ from threadpoolctl import threadpool_limits
 from rom.academic import BladedDisk
 from rom.component import Component
 from rom.contact import FLANKS, ContactPattern
+from rom.fe_assembly import AssemblyModes
 from rom.hex20 import assemble
 from rom.solver import solve_modes
 
@@ -36,7 +37,6 @@ __all__ = [
     "BladeVariation",
     "TruthTwin",
     "TruthAssembly",
-    "TruthModes",
     "draw_blade_variations",
     "make_truth_twin",
     "assemble_truth",
@@ -288,32 +288,7 @@ def assemble_truth(twin: TruthTwin, slots: Sequence[int] | None, *, with_disk: b
     return TruthAssembly(K.tocsr(), M.tocsr(), np.asarray(meas_rows, dtype=np.int64), meas_labels, slots, nd)
 
 
-@dataclass(frozen=True, eq=False)
-class TruthModes:
-    """Exact modes of a truth assembly at its measurement DOFs.
-
-    Attributes
-    ----------
-    frequencies_hz : ndarray, shape (n_modes,)
-        Elastic natural frequencies (Hz), ascending.
-    meas_shapes : ndarray, shape (n_meas, n_modes)
-        Mass-normalised mode shapes at the measurement DOFs (m/√kg).
-    rigid_shapes : ndarray, shape (n_meas, n_rigid)
-        Mass-normalised rigid-body modes at the measurement DOFs (they give the FRFs' mass line).
-    meas_labels : list of tuple
-    blade_energy : ndarray, shape (n_modes,)
-        Share of each mode's kinetic energy in the blades (1 for a blade alone): tells blade-dominated
-        modes (the blade-mode families) from disk-dominated ones.
-    """
-
-    frequencies_hz: np.ndarray
-    meas_shapes: np.ndarray
-    rigid_shapes: np.ndarray
-    meas_labels: list
-    blade_energy: np.ndarray | None = None
-
-
-def solve_truth(asm: TruthAssembly, n_modes: int) -> TruthModes:
+def solve_truth(asm: TruthAssembly, n_modes: int) -> AssemblyModes:
     """The lowest ``n_modes`` elastic modes of a truth assembly (free–free: the rigid modes come apart).
 
     The solve runs with one MKL/BLAS thread. Multithreaded Pardiso sums in a run-dependent order: two solves
@@ -326,11 +301,12 @@ def solve_truth(asm: TruthAssembly, n_modes: int) -> TruthModes:
     nd = asm.n_disk_dof
     # Mass-normalised shapes: total kinetic energy 1, so the blades hold 1 − the disk's share.
     disk_energy = np.einsum("ij,ij->j", sol.shapes[:nd], asm.M[:nd, :nd] @ sol.shapes[:nd])
-    return TruthModes(sol.frequencies_hz, np.asarray(sol.shapes[asm.meas_rows]),
-                      np.asarray(sol.rigid_shapes[asm.meas_rows]), list(asm.meas_labels), 1.0 - disk_energy)
+    return AssemblyModes(sol.frequencies_hz, np.asarray(sol.shapes[asm.meas_rows]), list(asm.meas_labels),
+                         rigid_shapes=np.asarray(sol.rigid_shapes[asm.meas_rows]),
+                         blade_energy=1.0 - disk_energy)
 
 
-def canonical_degenerate(modes: TruthModes, inputs: Sequence[int], rtol: float = 1e-7) -> TruthModes:
+def canonical_degenerate(modes: AssemblyModes, inputs: Sequence[int], rtol: float = 1e-7) -> AssemblyModes:
     """The same modes with every group of repeated frequencies in a basis fixed by the hammer ``inputs``.
 
     A cyclic disk's double modes are one eigenspace: the solver returns an arbitrary basis of it, so the
@@ -342,7 +318,7 @@ def canonical_degenerate(modes: TruthModes, inputs: Sequence[int], rtol: float =
 
     Parameters
     ----------
-    modes : TruthModes
+    modes : AssemblyModes
     inputs : sequence of int
         Rows of ``modes.meas_shapes`` that are hammer points.
     """
@@ -364,7 +340,7 @@ def canonical_degenerate(modes: TruthModes, inputs: Sequence[int], rtol: float =
         start = stop
     k = np.argmax(np.abs(shapes), axis=0)
     shapes *= np.where(shapes[k, np.arange(shapes.shape[1])] < 0, -1.0, 1.0)
-    return TruthModes(f, shapes, modes.rigid_shapes, modes.meas_labels, energy)
+    return AssemblyModes(f, shapes, modes.meas_labels, rigid_shapes=modes.rigid_shapes, blade_energy=energy)
 
 
 def damping_ratios(n_modes: int, rng: np.random.Generator, damping_range: tuple[float, float]) -> np.ndarray:

@@ -51,19 +51,30 @@ class FEAssembly:
 
 @dataclass(frozen=True, eq=False)
 class AssemblyModes:
-    """Modes of an assembly at its measurement DOFs.
+    """Modes of an assembly at its measurement DOFs: the one mode-set type of every assembly solve.
+
+    The ROM's solves fill the first three fields; the virtual rig's exact (truth) solve also fills the
+    last two.
 
     Attributes
     ----------
     frequencies_hz : ndarray, shape (n_modes,)
+        Elastic natural frequencies (Hz), ascending.
     meas_shapes : ndarray, shape (n_meas, n_modes)
-        Mass-normalised mode shapes at the measurement DOFs.
+        Mass-normalised mode shapes at the measurement DOFs (m/√kg).
     meas_labels : list of MeasLabel
+    rigid_shapes : ndarray, shape (n_meas, n_rigid), optional
+        Mass-normalised rigid-body modes at the measurement DOFs (they give the FRFs' mass line).
+    blade_energy : ndarray, shape (n_modes,), optional
+        Share of each mode's kinetic energy in the blades (1 for a blade alone): tells blade-dominated
+        modes (the blade-mode families) from disk-dominated ones.
     """
 
     frequencies_hz: np.ndarray
     meas_shapes: np.ndarray
     meas_labels: list
+    rigid_shapes: np.ndarray | None = None
+    blade_energy: np.ndarray | None = None
 
     def select(self, kind: str) -> tuple[np.ndarray, list]:
         """Rows of ``meas_shapes`` and labels of one kind (``"blade"`` or ``"disk"``)."""

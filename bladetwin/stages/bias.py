@@ -88,7 +88,7 @@ def measured_tracked(dataset: Dataset, d1b: dict[int, ema.ModalModel], joints, d
     its expected frequencies. Returns shape (n_joints, n_tracked).
     """
     ref = subset_reference(dataset, deltas)
-    return np.array([match_to_reference(d1b[int(j)].frequency_hz, ref[k]) for k, j in enumerate(joints)])
+    return np.array([match_to_reference(d1b[int(j)].frequencies_hz, ref[k]) for k, j in enumerate(joints)])
 
 
 def filmed_frequencies(tracker: ModeTracker, known: dict[int, ContactPattern], delta_all: np.ndarray, joints,

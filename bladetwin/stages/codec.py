@@ -21,10 +21,13 @@ import scipy.sparse as sp
 
 from rom.fileio import atomic_path
 
-__all__ = ["PACKAGES", "CodecError", "encode", "save", "load"]
+__all__ = ["PACKAGES", "FORMAT", "CodecError", "encode", "save", "load"]
 
 #: The packages whose dataclasses a store entry may name.
 PACKAGES = ("ema", "rom", "identify", "bladetwin")
+#: Version of the stored types' fields, part of every node's key: raise it when a stored dataclass renames
+#: or drops a field, so old entries are never decoded into the new types (2: ``frequencies_hz`` in ema).
+FORMAT = 2
 
 
 class CodecError(ValueError):

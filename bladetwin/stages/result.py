@@ -55,6 +55,9 @@ class RunResult:
     validation: FullValidation
     notes: list[str]
     timings_s: dict[str, float] = field(default_factory=dict)
+    #: Stage nodes of this campaign computed in this run and found in the store (``computed``, ``reused``):
+    #: a run's timings are a cold run's only when nothing was reused.
+    stage_counts: dict[str, int] = field(default_factory=dict)
 
     @property
     def joints(self) -> np.ndarray:
@@ -107,6 +110,11 @@ def _notes(res: dict, campaign, opts: RunOptions, fits: dict) -> list[str]:
         notes.append("Picks files replaced the automatic pole selection for: " + ", ".join(picked) + ".")
     if opts.bias and not res["features"].bias_estimated:
         notes.append("Fewer than 2 filmed joints have a disk-one-blade test: the model bias was not estimated.")
+    tested = {t.index for t in campaign.of_type("d1b")}
+    untested = [j for j in range(1, campaign.n_blades + 1) if j not in tested and j not in campaign.known_joints]
+    if untested:
+        notes.append(f"Joints {untested}: no disk-one-blade test in the manifest; they get the baseline pattern "
+                     "(the films' majority), not an identification.")
     missing = res["predictions"].missing
     if missing:
         notes.append(f"Joints {missing}: a feature mode was not found in the disk-one-blade EMA within "

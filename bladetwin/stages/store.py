@@ -23,8 +23,9 @@ __all__ = ["Store", "node_key", "content_key", "FolderMemo"]
 
 
 def node_key(func_id: str, version: int, params: dict, input_keys: dict[str, str]) -> str:
-    """Key of a node's output: SHA-256 of its function, version, parameters and its inputs' keys."""
-    return hash_inputs("node", func_id, int(version), dict(params), dict(input_keys))
+    """Key of a node's output: SHA-256 of the store's format, its function, version, parameters and its inputs'
+    keys."""
+    return hash_inputs("node", codec.FORMAT, func_id, int(version), dict(params), dict(input_keys))
 
 
 def content_key(value) -> str:

@@ -66,7 +66,7 @@ def vs_measured(measured: ema.ModalModel, rom: AssemblyModes) -> ModeComparison:
     if pa.shape[0] < 2:
         raise CampaignError("the full-assembly test and the ROM share fewer than 2 measurement DOFs: the node "
                             "numbering of the UFF file does not follow the rig's convention (docs/campaign.md)")
-    return compare_modes((measured.frequency_hz, pa), (model.frequency_hz, pb), freq_window=MEASURED_WINDOW,
+    return compare_modes((measured.frequencies_hz, pa), (model.frequencies_hz, pb), freq_window=MEASURED_WINDOW,
                          mac_min=MEASURED_MAC_MIN)
 
 
@@ -84,13 +84,13 @@ def _in_band(m: AssemblyModes, f_max: float) -> AssemblyModes:
 
 
 def _measured_in_band(measured: ema.ModalModel, full: dict, notes: list) -> tuple[ema.ModalModel, float]:
-    f_max = float(measured.frequency_hz.max())
+    f_max = float(measured.frequencies_hz.max())
     top = float(min(m.frequencies_hz.max() for m in full.values()))
     if top < f_max:
         notes.append(f"The ROM's {len(next(iter(full.values())).frequencies_hz)} modes reach {top:.1f} Hz, below "
                      f"the highest measured mode ({f_max:.1f} Hz): the measured modes above are not compared.")
-        keep = measured.frequency_hz <= top
-        measured = ema.ModalModel(measured.frequency_hz[keep], measured.damping_ratio[keep],
+        keep = measured.frequencies_hz <= top
+        measured = ema.ModalModel(measured.frequencies_hz[keep], measured.damping_ratio[keep],
                                   measured.shapes[:, keep], measured.dofs)
         f_max = top
     return measured, f_max

@@ -17,7 +17,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from ema import FRFSet, fit, local_poles, lsrf, mac, stabilize
+from ema import FRFSet, fit, mac
+from ema.fit import local_poles
+from ema.lsrf import lsrf
+from ema.stabilization import stabilize
 
 from .synth import modal_frfs
 
@@ -89,7 +92,7 @@ def test_truth_is_dense_and_has_boundary_modes(dense):
 
 def _check(result, fn, zeta, phi, n_bands):
     m = result.model
-    found = m.frequency_hz
+    found = m.frequencies_hz
     # one-to-one: every true mode found once, nothing else
     nearest = np.argmin(np.abs(found[:, None] - fn[None, :]), axis=1)
     rel = np.abs(found - fn[nearest]) / fn[nearest]
@@ -107,7 +110,7 @@ def _check(result, fn, zeta, phi, n_bands):
     d = result.diagram
     for f in BOUNDARY_MODES.get(n_bands, []):
         assert np.sum(np.abs(found - f) / f < 0.005) == np.sum(np.abs(fn - f) / f < 0.005) == 1
-        near = np.abs(d.frequency_hz - f) / f < 1e-3
+        near = np.abs(d.frequencies_hz - f) / f < 1e-3
         per_order = np.bincount(d.order[near], minlength=max(d.orders) + 1)
         assert per_order.max() == 1, f"{f} Hz: {per_order.max()} poles in one order"
         assert np.count_nonzero(per_order[20:]) >= 0.9 * (per_order.size - 20), f"{f} Hz lost in the merge"
@@ -137,10 +140,10 @@ def test_local_poles_merged_set(dense):
     band = (400.0, 480.0)
     poles = local_poles(frf, 2, "lsrf", band, max_order=20)
     assert poles.method == "lsrf/local" and poles.band_hz == band and poles.orders == tuple(range(1, 21))
-    assert poles.frequency_hz.min() >= band[0] and poles.frequency_hz.max() <= band[1]
+    assert poles.frequencies_hz.min() >= band[0] and poles.frequencies_hz.max() <= band[1]
     assert poles.vector.shape == (poles.pole.size, N_BLADES)
     diagram = stabilize(poles)
-    top = diagram.frequency_hz[diagram.order == 20]
+    top = diagram.frequencies_hz[diagram.order == 20]
     for f in fn[(fn > 405) & (fn < 475)]:
         assert np.min(np.abs(top - f)) / f < 5e-4
     with pytest.raises(ValueError):
@@ -160,4 +163,4 @@ def test_complex_lsrf_sends_noise_poles_to_negative_damping(dense):
     physical = (ps.damping_ratio > 0) & (ps.damping_ratio < 0.2)
     assert n_true <= physical.sum() <= n_true + 5
     for f in fn[(fn >= band[0]) & (fn <= band[1])]:
-        assert np.min(np.abs(ps.frequency_hz[physical] - f)) / f < 5e-5
+        assert np.min(np.abs(ps.frequencies_hz[physical] - f)) / f < 5e-5

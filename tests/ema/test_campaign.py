@@ -5,18 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from ema import (
-    ModalModel,
-    automac,
-    blade_deltas,
-    disk_modes,
-    joint_frequencies,
-    mac,
-    nodal_diameters,
-    pair_modes,
-    write_table,
-)
+from ema import ModalModel, blade_deltas, disk_modes, joint_frequencies, mac, nodal_diameters, pair_modes, write_table
 from ema.campaign import nodal_diameter_purity
+from ema.mac import automac
 
 
 def _blade_campaign(n_blades=18, seed=5):

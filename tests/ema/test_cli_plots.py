@@ -106,7 +106,7 @@ def test_errors_are_value_errors(tmp_path):
 def test_plots_only_read(uff_file):
     _, frf = uff_file
     result = fit(frf, method="lscf", band=(20, 980), max_order=40, refine=False)
-    fig = plot_stabilization(result.diagram, frf, selected_hz=result.model.frequency_hz)
+    fig = plot_stabilization(result.diagram, frf, selected_hz=result.model.frequencies_hz)
     assert fig.axes
     fig = plot_stabilization(result.diagram, frf, indicator="cmif")
     fig = plot_mac(np.eye(3) * 0.9 + 0.05)

@@ -94,3 +94,18 @@ def test_scaled_rows_give_mac_paired_bit_for_bit():
         s.mac([0, 1], s, [2])
     with pytest.raises(EMAError, match="2-D"):
         ScaledRows.of(np.ones(3))
+
+
+def test_weighted_mac_against_its_definition():
+    """The mass-weighted MAC the identification tracks modes with, against (aᵀWb)²/((aᵀWa)(bᵀWb))."""
+    rng = np.random.default_rng(0)
+    A, B = rng.standard_normal((6, 2)), rng.standard_normal((6, 3))
+    C = rng.standard_normal((6, 6))
+    W = C @ C.T + 6 * np.eye(6)
+    expect = [[(a @ W @ b) ** 2 / ((a @ W @ a) * (b @ W @ b)) for b in B.T] for a in A.T]
+    np.testing.assert_allclose(mac(A, B, weight=W), expect, rtol=1e-12)
+    # a zero shape gives 0, not NaN, weighted or not
+    A[:, 0] = 0.0
+    assert np.all(mac(A, B, weight=W)[0] == 0.0) and np.all(mac(A, B)[0] == 0.0)
+    with pytest.raises(EMAError, match="weight"):
+        mac(A, B, weight=np.eye(5))

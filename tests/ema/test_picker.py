@@ -28,7 +28,7 @@ def _click(picker, freq_hz, order, button=1):
 
 def test_click_picks_the_nearest_most_stable_pole_and_toggles(diagram_and_frf):
     diagram, frf = diagram_and_frf
-    before = diagram.frequency_hz.copy()
+    before = diagram.frequencies_hz.copy()
     picker = PolePicker(diagram, frf, fig=Figure())
     top = max(diagram.orders)
     for f in FN[[0, 3, 7]]:
@@ -36,7 +36,7 @@ def test_click_picks_the_nearest_most_stable_pole_and_toggles(diagram_and_frf):
     assert len(picker.picks) == 3
     for (order, f), truth in zip(picker.picks, FN[[0, 3, 7]], strict=True):
         assert order == top and abs(f / truth - 1) < 5e-4
-        k = np.flatnonzero((diagram.order == order) & (diagram.frequency_hz == f))[0]
+        k = np.flatnonzero((diagram.order == order) & (diagram.frequencies_hz == f))[0]
         assert diagram.stability[k] == STABLE_FDV
     # Clicking a picked pole again drops it; a right click drops too.
     _click(picker, picker.picks[0][1], top)
@@ -45,7 +45,7 @@ def test_click_picks_the_nearest_most_stable_pole_and_toggles(diagram_and_frf):
     # A click far from any pole picks nothing.
     _click(picker, 60.0, 0.5 * top)
     assert len(picker.picks) == 1
-    np.testing.assert_array_equal(diagram.frequency_hz, before)  # the diagram is never modified
+    np.testing.assert_array_equal(diagram.frequencies_hz, before)  # the diagram is never modified
 
 
 def test_selection_is_the_same_as_explicit_picks(diagram_and_frf):
@@ -54,8 +54,8 @@ def test_selection_is_the_same_as_explicit_picks(diagram_and_frf):
     picker = PolePicker(diagram, initial=[(top, f) for f in FN], fig=Figure())
     sel = picker.selection()
     ref = select_picks(diagram, [(top, f) for f in FN])
-    np.testing.assert_allclose(sel.frequency_hz, ref.frequency_hz)
-    np.testing.assert_allclose(sel.frequency_hz, FN, rtol=5e-4)
+    np.testing.assert_allclose(sel.frequencies_hz, ref.frequencies_hz)
+    np.testing.assert_allclose(sel.frequencies_hz, FN, rtol=5e-4)
 
 
 def test_bad_initial_pick(diagram_and_frf):

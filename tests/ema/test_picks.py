@@ -41,8 +41,8 @@ def _top_order_picks(diagram, freqs):
     cand = np.flatnonzero(diagram.order == top)
     out = []
     for f in freqs:
-        k = cand[np.argmin(np.abs(diagram.frequency_hz[cand] - f))]
-        out.append((int(diagram.order[k]), float(diagram.frequency_hz[k])))
+        k = cand[np.argmin(np.abs(diagram.frequencies_hz[cand] - f))]
+        out.append((int(diagram.order[k]), float(diagram.frequencies_hz[k])))
     return tuple(out)
 
 
@@ -87,12 +87,12 @@ def test_optional_fields_default(picks, tmp_path):
 
 def test_fit_with_picks_gives_exactly_the_picked_modes(frf, auto, picks, tmp_path):
     result = fit_with_picks(frf, load_picks(save_picks(tmp_path / "p.json", picks)))
-    got = np.sort(result.model.frequency_hz)
+    got = np.sort(result.model.frequencies_hz)
     assert got.size == len(KEEP)
     np.testing.assert_allclose(got, FN[KEEP], rtol=1e-3)
     assert result.selection.how == "picks"
     # the automatic fit finds all three modes: the picks really replaced the selection
-    ref = np.sort(auto.model.frequency_hz)
+    ref = np.sort(auto.model.frequencies_hz)
     assert ref.size == FN.size
     np.testing.assert_allclose(ref, FN, rtol=1e-3)
     assert not np.any(np.abs(got / FN[1] - 1) < 0.01)
@@ -120,7 +120,7 @@ def test_pick_of_an_order_not_computed(frf, picks):
 def test_pick_far_from_every_pole(frf, auto, picks):
     d = auto.diagram
     top = max(d.orders)
-    poles = d.frequency_hz[d.order == top]
+    poles = d.frequencies_hz[d.order == top]
     grid = np.linspace(BAND[0] + 5, BAND[1] - 5, 500)
     far = grid[np.argmax([np.min(np.abs(poles - f)) / f for f in grid])]
     assert np.min(np.abs(poles - far)) > 0.01 * far  # a frequency with no pole of that order within 1 %
@@ -151,8 +151,8 @@ def test_two_picks_of_one_pole(frf, picks):
         ({"picks": ()}, "picks"),
         ({"picks": ((0, 150.0),)}, "picks[0].order"),
         ({"picks": ((True, 150.0),)}, "picks[0].order"),
-        ({"picks": ((20, float("nan")),)}, "picks[0].frequency_hz"),
-        ({"picks": ((20, -150.0),)}, "picks[0].frequency_hz"),
+        ({"picks": ((20, float("nan")),)}, "picks[0].frequencies_hz"),
+        ({"picks": ((20, -150.0),)}, "picks[0].frequencies_hz"),
         ({"picks": ((20, 50.0),)}, "picks[0]"),  # outside the band
         ({"picks": ((20, 150.0), (20, 150.0))}, "picks[1]"),
         ({"n_bands": 0}, "n_bands"),
@@ -226,13 +226,13 @@ DAMAGED = {
     "pick-order-0": (_pick0("order", 0), "picks[0].order"),
     "pick-order-float": (_pick0("order", 20.0), "picks[0].order"),
     "pick-order-bool": (_pick0("order", True), "picks[0].order"),
-    "pick-frequency-str": (_pick0("frequency_hz", "150"), "picks[0].frequency_hz"),
-    "pick-frequency-neg": (_pick0("frequency_hz", -150.0), "picks[0].frequency_hz"),
+    "pick-frequency-str": (_pick0("frequency_hz", "150"), "picks[0].frequencies_hz"),
+    "pick-frequency-neg": (_pick0("frequency_hz", -150.0), "picks[0].frequencies_hz"),
     "pick-frequency-out-of-band": (_pick0("frequency_hz", 900.0), "picks[0]"),
     "pick-nan": (lambda doc: json.dumps(doc).replace(str(doc["picks"][0]["frequency_hz"]), "NaN"),
-                 "picks[0].frequency_hz"),
+                 "picks[0].frequencies_hz"),
     "pick-inf": (lambda doc: json.dumps(doc).replace(str(doc["picks"][0]["frequency_hz"]), "1e999"),
-                 "picks[0].frequency_hz"),
+                 "picks[0].frequencies_hz"),
 }
 
 

@@ -50,15 +50,15 @@ def _check(found, six):
 def test_lscf_auto_matches_sdypy(measured, sdypy_six):
     assert sdypy_six.size == 6
     result = fit(read_uff(measured[0]), method="lscf", band=(10, 1000), max_order=60)
-    _check(result.model.frequency_hz, sdypy_six)
+    _check(result.model.frequencies_hz, sdypy_six)
 
 
 def test_lsrf_agrees_with_lscf(measured, sdypy_six):
     frf = read_uff(measured[0])
-    a = fit(frf, method="lscf", band=(10, 1000), max_order=60).model.frequency_hz
+    a = fit(frf, method="lscf", band=(10, 1000), max_order=60).model.frequencies_hz
     # damping of 0.05 % at 1 Hz resolution is not resolvable: loosen the damping stability criterion
     b = fit(frf, method="lsrf", band=(10, 1000), max_order=60, criteria=StabilityCriteria(damping_tol=0.2))
-    b = b.model.frequency_hz
+    b = b.model.frequencies_hz
     _check(b, sdypy_six)
     for f in a:
         assert np.min(np.abs(b - f) / f) <= 0.002

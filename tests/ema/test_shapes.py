@@ -16,7 +16,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ema import FRFSet, mac, modal_model
+from ema import FRFSet, mac
+from ema.lsfd import modal_model
 from ema.modal import pole_from_modal
 
 from .synth import modal_frfs

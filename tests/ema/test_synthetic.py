@@ -5,8 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from ema import FRFSet, StabilizationDiagram, fit, lscf, lsrf, mac, stabilize
-from ema.stabilization import STABLE_FDV
+from ema import FRFSet, fit, mac
+from ema.lscf import lscf
+from ema.lsrf import lsrf
+from ema.stabilization import STABLE_FDV, StabilizationDiagram, stabilize
 
 from .synth import FN, ZETA, synthetic_case
 
@@ -19,8 +21,8 @@ def _frfset(form, n_i=1):
 
 def _check(result, phi, refine):
     m = result.model
-    assert m.n_modes == FN.size, f"selected {np.round(m.frequency_hz, 2)}"
-    assert np.max(np.abs(m.frequency_hz - FN) / FN) < 5e-4
+    assert m.n_modes == FN.size, f"selected {np.round(m.frequencies_hz, 2)}"
+    assert np.max(np.abs(m.frequencies_hz - FN) / FN) < 5e-4
     assert np.max(np.abs(m.damping_ratio - ZETA) / ZETA) < 0.10
     assert np.all(np.diag(mac(m.shapes, phi)) >= 0.99)
 
@@ -52,7 +54,7 @@ def test_noise_free_poles_exact_at_every_high_order():
     freq, H, _ = synthetic_case("mobility", noise=0.0)
     frf = FRFSet(freq, H, [(k + 1, 3) for k in range(H.shape[0])], [(1, 3)], form="mobility")
     for ps in (lscf(frf, band=(20, 980), orders=[60]), lsrf(frf, band=(20, 980), orders=[60])):
-        f = ps.frequency_hz
+        f = ps.frequencies_hz
         for fn in FN:
             assert np.min(np.abs(f - fn)) / fn < 1e-8
 
@@ -66,12 +68,12 @@ def test_stabilization_classes_and_frozen():
     with pytest.raises(AttributeError):
         diagram.method = "x"  # type: ignore[misc]
     with pytest.raises(ValueError):
-        diagram.frequency_hz[0] = 1.0
+        diagram.frequencies_hz[0] = 1.0
 
 
 def test_select_near_and_picks():
     frf, _ = _frfset("receptance")
     near = fit(frf, method="lscf", band=(20, 980), max_order=60, frequencies_hz=[350.5, 779.0], refine=False)
-    assert np.allclose(near.model.frequency_hz, [350.0, 780.0], rtol=5e-4)
+    assert np.allclose(near.model.frequencies_hz, [350.0, 780.0], rtol=5e-4)
     picks = fit(frf, method="lscf", band=(20, 980), max_order=60, picks=[(60, 480.0)], refine=False)
-    assert picks.model.n_modes == 1 and abs(picks.model.frequency_hz[0] - 480.0) < 0.5
+    assert picks.model.n_modes == 1 and abs(picks.model.frequencies_hz[0] - 480.0) < 0.5

@@ -127,7 +127,7 @@ def test_ascii_58_and_modes_55(tmp_path):
     model = ModalModel([10.0, 20.0], [0.01, 0.02], rng.standard_normal((6, 2)), dofs)
     write_modes(tmp_path / "m.uff", model)
     m2 = read_modes(tmp_path / "m.uff")
-    np.testing.assert_allclose(m2.frequency_hz, [10.0, 20.0], rtol=1e-5)
+    np.testing.assert_allclose(m2.frequencies_hz, [10.0, 20.0], rtol=1e-5)
     np.testing.assert_allclose(m2.damping_ratio, [0.01, 0.02], rtol=1e-4)
 
 

@@ -19,7 +19,7 @@ from scipy.optimize import linear_sum_assignment
 
 from ema.mac import mac as ema_mac
 from identify.errors import IdentifyError
-from identify.sensitivity import mac_matrix, model_key, reference_pair, sensitivity, summarize
+from identify.sensitivity import model_key, reference_pair, sensitivity, summarize
 from rom import ContactPattern, assemble_d1b, solve_d1b
 from rom.modal import single_thread_blas
 
@@ -141,16 +141,6 @@ def test_reference_pair_is_the_medoid():
     row0[0] = True
     # Hamming distances: full–rows01 7, rows01–row0 7, full–row0 14: rows01 is central.
     assert reference_pair(np.array([FULL, rows01, row0]), np.array([row0, FULL, rows01])) == (1, 2)
-
-
-def test_mac_matrix_against_definition():
-    rng = np.random.default_rng(0)
-    A, B = rng.standard_normal((6, 2)), rng.standard_normal((6, 3))
-    C = rng.standard_normal((6, 6))
-    W = C @ C.T + 6 * np.eye(6)
-    expect = [[(a @ W @ b) ** 2 / ((a @ W @ a) * (b @ W @ b)) for b in B.T] for a in A.T]
-    np.testing.assert_allclose(mac_matrix(A, B, W), expect, rtol=1e-12)
-    np.testing.assert_allclose(mac_matrix(A, B), ema_mac(A, B), rtol=1e-12)
 
 
 def test_model_key_identifies_the_rom():

@@ -5,7 +5,7 @@ import pytest
 import scipy.linalg as sla
 
 from lab.rig import RigSetup, dof_label, measure, peak_snr, synthesize_mobility
-from lab.truth import TruthModes
+from rom.fe_assembly import AssemblyModes
 
 
 def _free_chain(n: int = 8):
@@ -28,7 +28,7 @@ def test_modal_synthesis_matches_a_direct_solve_with_classical_damping():
     # Classical damping with exactly these modal ratios: C = M Φ diag(2 ζ ω) Φᵀ M.
     C = M @ elastic @ np.diag(2 * zeta * wn) @ elastic.T @ M
     labels = [("blade", 1, p + 1, 1) for p in range(K.shape[0])]
-    modes = TruthModes(wn / (2 * np.pi), elastic, rigid, labels)
+    modes = AssemblyModes(wn / (2 * np.pi), elastic, labels, rigid_shapes=rigid)
     freq = np.linspace(5.0, 1.2 * wn.max() / (2 * np.pi), 400)
     H = synthesize_mobility(modes, zeta, freq, outputs=range(K.shape[0]), inputs=[0, 3])
     for f_idx in (0, 137, 399):
@@ -42,7 +42,7 @@ def test_measure_labels_units_noise_and_snr():
     lam, Phi = sla.eigh(K, M)
     wn = np.sqrt(lam[1:])
     labels = [("disk", p + 1, 1, 3) for p in range(K.shape[0])]
-    modes = TruthModes(wn / (2 * np.pi), Phi[:, 1:], Phi[:, :1], labels)
+    modes = AssemblyModes(wn / (2 * np.pi), Phi[:, 1:], labels, rigid_shapes=Phi[:, :1])
     zeta = np.full(wn.size, 0.002)
     setup = RigSetup((10.0, 1.1 * wn.max() / (2 * np.pi)), 0.5, multiplicative_noise=0.01, additive_noise=0.0)
     a = measure(modes, zeta, setup, np.random.default_rng(1), inputs=[0])

@@ -75,7 +75,8 @@ def test_bad_truth_inputs(coarse_bd, patterns):
 
 def test_canonical_degenerate_removes_the_solver_basis_of_a_double_mode():
     """A double mode in two different bases (as two solver runs may return it) becomes the same modes."""
-    from lab.truth import TruthModes, canonical_degenerate
+    from lab.truth import canonical_degenerate
+    from rom.fe_assembly import AssemblyModes
 
     rng = np.random.default_rng(4)
     shapes = rng.standard_normal((8, 4))
@@ -86,8 +87,8 @@ def test_canonical_degenerate_removes_the_solver_basis_of_a_double_mode():
         rot = shapes.copy()
         rot[:, 1:3] = shapes[:, 1:3] @ np.array([[c, -s], [s, c]])
         order = [0, 2, 1, 3] if angle > 1 else [0, 1, 2, 3]  # the solver may also swap the pair
-        m = TruthModes(f[order], rot[:, order], np.zeros((8, 0)), [("x", 0, k, 1) for k in range(8)],
-                       np.array([0.1, 0.5, 0.5, 0.9]))
+        m = AssemblyModes(f[order], rot[:, order], [("x", 0, k, 1) for k in range(8)],
+                          rigid_shapes=np.zeros((8, 0)), blade_energy=np.array([0.1, 0.5, 0.5, 0.9]))
         out.append(canonical_degenerate(m, [0]))
     np.testing.assert_allclose(out[0].meas_shapes, out[1].meas_shapes, atol=1e-12)
     np.testing.assert_allclose(out[0].frequencies_hz, out[1].frequencies_hz, rtol=1e-15)

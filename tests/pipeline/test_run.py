@@ -225,9 +225,9 @@ def test_a_picks_file_replaces_the_automatic_selection(campaign, cold, tmp_path)
     # keep every other automatic mode: the pole of the highest order nearest to it
     top = d.order == d.order.max()
     chosen = []
-    for f in auto.model.frequency_hz[::2]:
-        k = np.flatnonzero(top)[np.argmin(np.abs(d.frequency_hz[top] - f))]
-        chosen.append((int(d.order[k]), float(d.frequency_hz[k])))
+    for f in auto.model.frequencies_hz[::2]:
+        k = np.flatnonzero(top)[np.argmin(np.abs(d.frequencies_hz[top] - f))]
+        chosen.append((int(d.order[k]), float(d.frequencies_hz[k])))
     (lab / "picks").mkdir()
     ema.save_picks(lab / "picks" / "assembly.json",
                    ema.Picks(file="assembly/assembly.uff", method="lsrf", band_hz=None, max_order=test.max_order,

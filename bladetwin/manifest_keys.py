@@ -1,0 +1,61 @@
+"""The keys a campaign manifest may hold, table by table; an unknown key is refused with the nearest allowed one.
+
+A typo'd optional key (``frf_unit``, ``max_ordr``) would otherwise be ignored and its default used in silence,
+so every table of ``campaign.toml`` is checked against its list here (docs/campaign.md).
+"""
+
+from __future__ import annotations
+
+import difflib
+
+__all__ = ["TOP_KEYS", "CAMPAIGN_KEYS", "TEST_KEYS", "FILM_KEYS", "unknown_key_message", "film_meta_message"]
+
+#: The manifest's top-level tables.
+TOP_KEYS = ("campaign", "model", "tests", "films")
+#: ``[campaign]``: identity, layout, the filmed joints, the FRF unit label; what wrote it and how films map.
+CAMPAIGN_KEYS = ("name", "kind", "n_blades", "grid", "known_joints", "frf_units", "generated_by", "orientation",
+                 "description")
+#: ``[[tests]]``: one UFF file each.
+TEST_KEYS = ("type", "file", "blade", "joint", "max_order", "picks", "units", "check_numbering")
+#: ``[[films]]``: one scan each, with its film metadata (``identify.film.FilmGeometry``, ``lab.films.FilmMeta``
+#: without the truth's own ``shift`` and ``rotation``).
+FILM_KEYS = ("joint", "flank", "file", "grid", "spacing", "pixel_size", "origin", "node_origin", "contact_level",
+             "white", "threshold_pressure", "p_sat", "orientation")
+
+
+def unknown_key_message(table: dict, allowed: tuple[str, ...], where: str) -> str | None:
+    """One line naming the first key of ``table`` not in ``allowed`` (and the nearest allowed one), or None."""
+    unknown = [k for k in table if k not in allowed]
+    if not unknown:
+        return None
+    key = unknown[0]
+    near = difflib.get_close_matches(key, allowed, n=1, cutoff=0.6)
+    hint = f"; did you mean {near[0]!r}?" if near else ""
+    return f"{where}: unknown key {key!r}{hint} (allowed: {', '.join(allowed)})"
+
+
+_FILM_NUMBERS = ("pixel_size", "contact_level", "white", "threshold_pressure", "p_sat")
+_FILM_PAIRS = ("grid", "spacing", "origin", "node_origin")
+
+
+def _number(v) -> bool:
+    return isinstance(v, int | float) and not isinstance(v, bool)
+
+
+def film_meta_message(meta: dict, where: str) -> str | None:
+    """One line naming the first unusable film metadata field (type, range, a geometry half given), or None."""
+    for key in _FILM_NUMBERS:
+        positive = key not in ("contact_level", "white")  # gray levels may be 0; sizes and pressures may not
+        if key in meta and not (_number(meta[key]) and (meta[key] > 0 if positive else meta[key] >= 0)):
+            return f"{where}: {key} = {meta[key]!r}, expected a {'positive' if positive else 'non-negative'} number"
+    for key in _FILM_PAIRS:
+        if key in meta and not (isinstance(meta[key], list) and len(meta[key]) == 2 and all(map(_number, meta[key]))):
+            return f"{where}: {key} = {meta[key]!r}, expected two numbers [row, col]"
+    geometry = [k for k in ("origin", "spacing", "pixel_size") if k in meta]
+    if geometry and len(geometry) < 3:
+        missing = [k for k in ("origin", "spacing", "pixel_size") if k not in meta]
+        return f"{where}: film geometry gives {', '.join(geometry)} but lacks {', '.join(missing)} (all three or none)"
+    if _number(meta.get("contact_level")) and _number(meta.get("white")) and meta["contact_level"] >= meta["white"]:
+        return (f"{where}: contact_level = {meta['contact_level']} is not below white = {meta['white']}: every pixel "
+                "would read as contact")
+    return None

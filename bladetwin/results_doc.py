@@ -1,0 +1,250 @@
+"""``docs/results.md`` and the README's figures, generated from a run's ``summary.json`` and the benchmarks' JSON.
+
+``make results`` copies the last run's ``summary.json`` into ``docs/results/`` and calls :func:`main`;
+``make bench-results`` refreshes the benchmarks' files there (``bench_*.json``, each written by a benchmark's
+``--json``). Every figure in the generated text is a JSON value, rounded for display, and the row that shows it
+names its file and key (``source`` column), so a reader (and ``tests/pipeline/test_results_doc.py``) can check
+it. Nothing here computes a figure: it only formats what the run and the benchmarks measured.
+"""
+
+from __future__ import annotations
+
+import json
+import re
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+
+from rom.fileio import atomic_path
+
+__all__ = ["Row", "lookup", "table8_rows", "contact_rows", "performance_rows", "render_results",
+           "readme_blocks", "update_readme", "main"]
+
+#: The benchmark files ``make bench-results`` writes, by the name the tables use.
+BENCHMARKS = {"run": "bench_run.json", "rom": "bench_rom.json", "ema": "bench_ema.json",
+              "dataset": "bench_dataset.json"}
+_MISSING = "not measured"
+
+
+def lookup(doc: dict, key: str):
+    """The value at ``key`` in a JSON document: dots between fields, ``[k]`` a list index, ``[f=v]`` the list item
+    whose field ``f`` equals ``v`` (e.g. ``results[step=rom_d1b].seconds``); None where it is absent."""
+    node = doc
+    for part in re.findall(r"[^.\[\]]+|\[[^\]]+\]", key):
+        if part.startswith("["):
+            inner = part[1:-1]
+            if not isinstance(node, list):
+                return None
+            if "=" in inner:
+                f, v = inner.split("=", 1)
+                node = next((x for x in node if isinstance(x, dict) and str(x.get(f)) == v), None)
+            else:
+                k = int(inner)
+                node = node[k] if -len(node) <= k < len(node) else None
+        else:
+            node = node.get(part) if isinstance(node, dict) else None
+        if node is None:
+            return None
+    return node
+
+
+@dataclass(frozen=True)
+class Row:
+    """One table row: its label, its figures as printed, and where each comes from (``file:key``)."""
+
+    label: str
+    cells: tuple[str, ...]
+    sources: tuple[str, ...]
+
+
+def _fmt(value, spec: str) -> str:
+    if value is None:
+        return _MISSING
+    if isinstance(value, bool):
+        return "yes" if value else "no"
+    return format(value, spec)
+
+
+def _value(docs: dict, f: str, key: str):
+    """The JSON value ``f:key``; for ``key`` written ``a / b``, the ratio of two values of ``f``."""
+    if " / " in key:
+        a, b = (lookup(docs.get(f, {}), k) for k in key.split(" / "))
+        return a / b if isinstance(a, (int, float)) and isinstance(b, (int, float)) and b else None
+    return lookup(docs.get(f, {}), key)
+
+
+def _row(label: str, docs: dict, figures: list[tuple[str, str, str]]) -> Row:
+    """``figures``: (file name, key, format spec) of each cell; a key ``a / b`` is the ratio of two keys."""
+    cells = tuple(_fmt(_value(docs, f, k), spec) for f, k, spec in figures)
+    return Row(label, cells, tuple(f"{f}:{k}" for f, k, _ in figures))
+
+
+_CASES = (("Case A", "A"), ("Case B", "B"), ("Case B, no bias correction", "B_no_bias"), ("Case C", "C"),
+          ("baseline (as Case A)", "baseline.A"), ("baseline (as Case B)", "baseline.B"))
+
+
+def table8_rows(docs: dict) -> list[Row]:
+    """Table 8 of the paper from ``summary.json``: mean |Δf| (%), mean MAC and paired modes per case."""
+    rows = []
+    for label, key in _CASES:
+        figures = [("summary.json", f"cases.{key}.mean_abs_df_pct", ".3f"),
+                   ("summary.json", f"cases.{key}.mean_mac", ".3f"), ("summary.json", f"cases.{key}.n_modes", "d")]
+        if "." not in key and "_" not in key:
+            figures += [("summary.json", f"paper_table8.{key}.mean_abs_df_pct", ".2f"),
+                        ("summary.json", f"paper_table8.{key}.mean_mac", ".2f")]
+        row = _row(label, docs, figures)
+        if row.cells[0] != _MISSING:
+            rows.append(row)
+    return rows
+
+
+def contact_rows(docs: dict) -> list[Row]:
+    """The unfilmed joints' contact against the truth (``summary.json`` → ``geometric``), identified vs baseline."""
+    return [_row(label, docs, [("summary.json", f"geometric.{key}.identified", ".2f"),
+                               ("summary.json", f"geometric.{key}.baseline", ".2f")])
+            for label, key in (("mean area-fraction error (pp)", "area_error_pp"),
+                               ("mean centroid distance (mm)", "centroid_distance_mm"))
+            if lookup(docs.get("summary.json", {}), f"geometric.{key}") is not None]
+
+
+_D1B, _FULL = "results[step=rom_d1b]", "results[step=rom_full_cyclic]"
+_CYC, _FE_FULL = "results[step=rom_disk_cyclic]", "results[step=fe_full]"
+#: (label, command, file, [(key, format)] of the figure, the reference measured in the same run, their ratio).
+_PERFORMANCE = (
+    ("`bladetwin run`, bundled campaign, empty store (s); reference: the same run, every stage stored",
+     "python benchmarks/run_cold.py", "bench_run.json", [("cold_s", ".0f"), ("warm_s", ".1f"), ("ratio", ".1f")]),
+    ("disk–one-blade ROM solve, 10 modes (s); reference: FE solve", "python benchmarks/rom.py", "bench_rom.json",
+     [(f"{_D1B}.median_solve_s", ".3f"), ("results[step=fe_d1b].seconds", ".2f"),
+      (f"{_D1B}.median_solve_s / results[step=fe_d1b].seconds", ".3f")]),
+    ("full ROM, 3N modes, cyclic CB disk (s); reference: FE solve", "python benchmarks/rom.py", "bench_rom.json",
+     [(f"{_FULL}.seconds", ".1f"), (f"{_FE_FULL}.seconds", ".1f"), (f"{_FULL}.seconds / {_FE_FULL}.seconds", ".2f")]),
+    ("full ROM vs FE, 3N modes: max relative frequency error, min MAC", "python benchmarks/rom.py",
+     "bench_rom.json", [(f"{_FULL}.max_rel_err", ".1e"), (f"{_FULL}.min_mac", ".5f")]),
+    ("full ROM peak memory (GB); reference: FE solve", "python benchmarks/rom.py", "bench_rom.json",
+     [(f"{_FULL}.peak_gb", ".2f"), (f"{_FE_FULL}.peak_gb", ".2f"), (f"{_FULL}.peak_gb / {_FE_FULL}.peak_gb", ".2f")]),
+    ("cyclic CB disk build, once per disk (s); reference: FE free-disk solve", "python benchmarks/rom.py",
+     "bench_rom.json", [(f"{_CYC}.seconds", ".1f"), ("results[step=fe_disk].seconds", ".1f"),
+                        (f"{_CYC}.seconds / results[step=fe_disk].seconds", ".2f")]),
+    ("EMA, LSCF, 54 outputs × 6400 lines, 100 orders (s); reference: sdypy-EMA", "python benchmarks/ema.py",
+     "bench_ema.json", [("lscf_s", ".2f"), ("sdypy_lscf_s", ".2f"), ("lscf_ratio", ".2f")]),
+    ("dataset by reanalysis (s); reference: direct solves, extrapolated", "python benchmarks/dataset.py",
+     "bench_dataset.json", [("build_s", ".1f"), ("direct_s_extrapolated", ".0f"),
+                            ("build_s / direct_s_extrapolated", ".4f")]),
+    ("dataset, max relative frequency error vs direct solves", "python benchmarks/dataset.py", "bench_dataset.json",
+     [("max_rel_err", ".1e")]),
+)
+
+
+def performance_rows(docs: dict) -> list[Row]:
+    """One row per benchmark figure: figure, the reference measured in the same run, and their ratio."""
+    rows = []
+    for label, command, f, figures in _PERFORMANCE:
+        row = _row(f"{label}|{command}", docs, [(f, k, spec) for k, spec in figures])
+        rows.append(Row(row.label, row.cells + ("",) * (3 - len(row.cells)), row.sources))
+    return rows
+
+
+def _table(header: list[str], rows: list[Row], with_command: bool = False) -> list[str]:
+    lines = ["| " + " | ".join(header + ["source"]) + " |", "|" + "---|" * (len(header) + 1)]
+    for r in rows:
+        label = r.label.split("|")
+        cmd = [f"`{label[1]}`"] if with_command else []
+        src = ", ".join(f"`{s}`" for s in r.sources)
+        lines.append("| " + " | ".join([label[0], *r.cells, *cmd, src]) + " |")
+    return lines
+
+
+_T8_HEADER = ["Table 8", "mean \\|Δf\\| %", "mean MAC", "paired modes", "paper \\|Δf\\| %", "paper MAC"]
+_GEO_HEADER = ["unfilmed joints vs truth", "identified", "baseline"]
+_PERF_HEADER = ["what", "measured", "reference", "ratio", "command"]
+
+
+def _pad(rows: list[Row], n: int) -> list[Row]:
+    return [Row(r.label, r.cells + ("",) * (n - len(r.cells)), r.sources) for r in rows]
+
+
+def readme_blocks(docs: dict) -> dict[str, str]:
+    """The README's generated blocks by marker name: ``table8``, ``contact``, ``performance``."""
+    s = docs.get("summary.json", {})
+    run = f"`bladetwin run` on `{s.get('campaign', '?')}`"
+    t8 = [f"Figures of {run} (`docs/results/summary.json`; mean over the paired modes):", "",
+          *_table(_T8_HEADER, _pad(table8_rows(docs), 5))]
+    geo = contact_rows(docs)
+    contact = ([f"At the unfilmed joints, against the campaign's true patterns ({run}):", "",
+                *_table(_GEO_HEADER, geo)] if geo else ["No true patterns in this campaign: no contact check."])
+    perf = [f"{_machine(docs)}; each figure from the command beside it, with the reference it measures in the "
+            "same run.", "", *_table(_PERF_HEADER, performance_rows(docs), with_command=True)]
+    return {"table8": "\n".join(t8), "contact": "\n".join(contact), "performance": "\n".join(perf)}
+
+
+def _machine(docs: dict) -> str:
+    cpus = lookup(docs.get("bench_run.json", {}), "cpu_count")
+    return f"{cpus}-core machine, default model" if cpus else "Default model"
+
+
+def render_results(docs: dict) -> str:
+    """The text of ``docs/results.md``."""
+    blocks = readme_blocks(docs)
+    s = docs.get("summary.json", {})
+    stages = s.get("stages", {})
+    lines = ["# Current results", "",
+             "Generated by `make results` from the JSON files in `docs/results/`; do not edit by hand. Each "
+             "figure's file and key is in its row's `source` column.", "",
+             f"## Table 8 ({s.get('campaign', '?')})", "", blocks["table8"], "",
+             "## Contact at the unfilmed joints", "", blocks["contact"], "",
+             "## Performance", "", blocks["performance"], "",
+             "## The run these figures come from", "",
+             f"- command: `{s.get('command', '?')}`; settings: `{json.dumps(s.get('settings', {}))}`",
+             f"- stage nodes computed {stages.get('computed', '?')}, reused from the store "
+             f"{stages.get('reused', '?')}; wall time {_fmt(lookup(s, 'timings_s.total'), '.1f')} s "
+             "(`summary.json:timings_s.total`)"]
+    return "\n".join(lines) + "\n"
+
+
+_BLOCK = re.compile(r"(<!-- results:(\w+) -->\n)(.*?)(<!-- /results:\2 -->)", re.S)
+
+
+def update_readme(text: str, blocks: dict[str, str]) -> str:
+    """``text`` with each ``<!-- results:NAME -->…<!-- /results:NAME -->`` block replaced by ``blocks[NAME]``."""
+    return _BLOCK.sub(lambda m: m.group(1) + blocks.get(m.group(2), m.group(3).rstrip("\n")) + "\n" + m.group(4),
+                      text)
+
+
+def load_docs(folder: Path) -> dict:
+    """Every JSON file of ``folder`` by file name; one clear error for a file that is not JSON."""
+    docs = {}
+    for name in ["summary.json", *BENCHMARKS.values()]:
+        path = folder / name
+        if path.exists():
+            try:
+                docs[name] = json.loads(path.read_text())
+            except (OSError, ValueError) as exc:
+                raise SystemExit(f"error: {path}: not a JSON document ({exc})") from None
+    if "summary.json" not in docs:
+        raise SystemExit(f"error: {folder / 'summary.json'}: missing (copy a run's summary.json there)")
+    return docs
+
+
+def main(argv: list[str] | None = None) -> int:
+    """``python -m bladetwin.results_doc [FOLDER] [--readme README.md]``: write ``docs/results.md``."""
+    import argparse
+
+    ap = argparse.ArgumentParser(description="Write docs/results.md (and the README's figures) from JSON files.")
+    ap.add_argument("folder", nargs="?", default="docs/results", type=Path)
+    ap.add_argument("--out", default="docs/results.md", type=Path)
+    ap.add_argument("--readme", default=None, type=Path, help="also update this README's results blocks")
+    args = ap.parse_args(argv)
+    docs = load_docs(args.folder)
+    with atomic_path(args.out) as tmp:
+        tmp.write_text(render_results(docs))
+    print(f"wrote {args.out}", file=sys.stderr)
+    if args.readme:
+        text = args.readme.read_text()
+        with atomic_path(args.readme) as tmp:
+            tmp.write_text(update_readme(text, readme_blocks(docs)))
+        print(f"updated {args.readme}", file=sys.stderr)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,106 @@
+"""docs/results.md and the README's figures against the JSON files they are generated from (docs/results/)."""
+
+from __future__ import annotations
+
+import json
+import re
+from pathlib import Path
+
+import pytest
+
+from bladetwin.results_doc import load_docs, lookup, readme_blocks, render_results, update_readme
+
+REPO = Path(__file__).resolve().parents[2]
+FOLDER = REPO / "docs" / "results"
+
+
+def _resolve(docs: dict, source: str):
+    """The test's own reading of a ``file:key`` source (``a / b`` a ratio), independent of the renderer."""
+    name, key = source.split(":", 1)
+    if " / " in key:
+        a, b = (_resolve(docs, f"{name}:{k}") for k in key.split(" / "))
+        return None if a is None or b is None else a / b
+    node = docs.get(name)
+    for part in key.replace("[", ".[").split("."):
+        if node is None or not part:
+            continue
+        m = re.fullmatch(r"\[(\w+)=([\w.-]+)\]", part)
+        if m:
+            node = next((x for x in node if str(x.get(m[1])) == m[2]), None)
+        else:
+            node = node.get(part) if isinstance(node, dict) else None
+    return node
+
+
+def _rows(text: str):
+    """(cells, sources) of every table row that names its sources."""
+    for line in text.splitlines():
+        if not line.startswith("| ") or "`" not in line.rsplit("|", 2)[-2]:
+            continue
+        cols = [c.strip() for c in line.strip("|").split("|")]
+        sources = re.findall(r"`([^`]+)`", cols[-1])
+        if all(":" in s for s in sources):
+            yield cols[1:1 + len(sources)], sources
+
+
+def _check_figures(text: str, docs: dict) -> int:
+    n = 0
+    for cells, sources in _rows(text):
+        for cell, source in zip(cells, sources, strict=True):
+            value = _resolve(docs, source)
+            if value is None:
+                assert cell == "not measured", (source, cell)
+                continue
+            printed = float(cell)
+            decimals = len(cell.split("e")[0].split(".")[1]) if "." in cell.split("e")[0] else 0
+            exp = int(cell.split("e")[1]) if "e" in cell else 0
+            # the printed figure is the JSON value rounded to its last printed digit
+            assert abs(printed - value) <= 0.5 * 10.0 ** (exp - decimals) * (1 + 1e-9), (source, cell, value)
+            n += 1
+    return n
+
+
+def test_every_figure_in_results_md_equals_its_json():
+    docs = load_docs(FOLDER)
+    text = (REPO / "docs" / "results.md").read_text()
+    assert _check_figures(text, docs) >= 20  # Table 8, the contact check and the performance table
+    for case in ("A", "B", "C"):  # the doc holds the run's Table 8, not another run's
+        assert f"{docs['summary.json']['cases'][case]['mean_abs_df_pct']:.3f}" in text
+
+
+def test_results_md_and_readme_are_regenerated_from_the_json():
+    docs = load_docs(FOLDER)
+    assert (REPO / "docs" / "results.md").read_text() == render_results(docs), "run `make results`"
+    readme = (REPO / "README.md").read_text()
+    assert readme == update_readme(readme, readme_blocks(docs)), "run `make results`"
+    assert _check_figures(readme, docs) >= 20
+
+
+def test_missing_benchmarks_and_blocks():
+    docs = {"summary.json": {"campaign": "c", "cases": {"A": {"mean_abs_df_pct": 0.1234, "mean_mac": 0.9,
+                                                              "n_modes": 7}}}}
+    text = render_results(docs)
+    assert "| Case A | 0.123 | 0.900 | 7 | not measured | not measured |" in text
+    assert "Case B" not in text and "No true patterns" in text
+    assert _check_figures(text, docs) == 3
+    readme = "a\n<!-- results:table8 -->\nold\n<!-- /results:table8 -->\n<!-- results:other -->\nkeep\n" \
+             "<!-- /results:other -->\n"
+    out = update_readme(readme, readme_blocks(docs))
+    assert "old" not in out and "| Case A | 0.123" in out and "keep" in out
+
+
+def test_lookup():
+    doc = {"results": [{"step": "a", "s": 1.0}, {"step": "b", "s": {"x": [3, 4]}}]}
+    assert lookup(doc, "results[step=b].s.x[1]") == 4
+    assert lookup(doc, "results[0].s") == 1.0
+    assert lookup(doc, "results[step=c].s") is None and lookup(doc, "nope.x") is None
+
+
+def test_a_damaged_json_is_refused_in_one_line(tmp_path):
+    (tmp_path / "summary.json").write_text("{not json")
+    with pytest.raises(SystemExit, match="summary.json: not a JSON document"):
+        load_docs(tmp_path)
+    (tmp_path / "summary.json").write_text(json.dumps({"campaign": "x"}))
+    (tmp_path / "bench_rom.json").write_text("")
+    with pytest.raises(SystemExit, match="bench_rom.json"):
+        load_docs(tmp_path)
