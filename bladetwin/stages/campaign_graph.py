@@ -139,7 +139,7 @@ def _pattern_nodes(p: Pipeline, opts: RunOptions, n_blades: int) -> None:
                content_key=True))
     p.add(Node("reference", reference_patterns, {"campaign": "campaign"}, where="parent", stored=False,
                content_key=True))
-    p.add(Node("synthetic", patterns.synthesize, {"films": "films"},
+    p.add(Node("synthetic", patterns.synthetic_patterns, {"films": "films"},
                {"n_patterns": opts.n_patterns, "scale": opts.scale, "seed": opts.seed}, where="parent"))
     p.add(Node("patterns/baseline", refinement.pattern_list, {"known": "known", "baseline": "baseline"},
                {"n_blades": n_blades}, where="parent", stored=False, content_key=True))

@@ -8,7 +8,7 @@ from identify.film import FilmGeometry, FilmMap, contact_pattern, read_film
 from identify.sampler import PatternSampler, SyntheticPatterns, sample_patterns
 from rom.contact import ContactPattern
 
-__all__ = ["read_films", "film_patterns", "synthesize", "family_samplers", "mean_known_pattern"]
+__all__ = ["read_films", "film_patterns", "synthetic_patterns", "family_samplers", "mean_known_pattern"]
 
 Films = dict[int, tuple[FilmMap, FilmMap]]
 
@@ -38,7 +38,8 @@ def _family_maps(films: Films) -> tuple[tuple[list, list], tuple[float, float]]:
     return sides, tuple(float(np.mean([m.level for m in maps])) for maps in sides)  # type: ignore[return-value]
 
 
-def synthesize(films: Films, *, n_patterns: int = 10, scale: float = 1.0, seed: int = 0) -> SyntheticPatterns:
+def synthetic_patterns(films: Films, *, n_patterns: int = 10, scale: float = 1.0,
+                       seed: int = 0) -> SyntheticPatterns:
     """Synthetic patterns SP-1..n per flank from the known films (paper §3.1, §6.1, Eqs. 23–32).
 
     The maps are thresholded at the known films' mean contact level per side (each film's own level is how
@@ -49,7 +50,7 @@ def synthesize(films: Films, *, n_patterns: int = 10, scale: float = 1.0, seed: 
 
 
 def family_samplers(films: Films) -> tuple[PatternSampler, PatternSampler]:
-    """The fitted PCA samplers (L, R) behind :func:`synthesize`'s patterns, for :func:`identify.refine_pattern`."""
+    """The fitted PCA samplers (L, R) behind :func:`synthetic_patterns`, for :func:`identify.refine_pattern`."""
     sides, thresholds = _family_maps(films)
     return tuple(PatternSampler(threshold=t).fit(maps)  # type: ignore[return-value]
                  for maps, t in zip(sides, thresholds, strict=True))
