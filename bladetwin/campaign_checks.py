@@ -11,8 +11,10 @@ from __future__ import annotations
 import hashlib
 import re
 from collections import Counter
+from dataclasses import dataclass
 from pathlib import Path
 
+from ema.frf import unit_factor
 from ema.numbering import BLADE_NODE_STRIDE
 
 from .campaign import Campaign, CampaignError, TestEntry
@@ -64,36 +66,51 @@ def check_numbering(test: TestEntry, nodes: set[int], manifest: Path) -> None:
                             f"or assembly test? {_OFF}")
 
 
-def _check_consistency(campaign: Campaign, frfs: dict[Path, object], manifest: Path) -> None:
+@dataclass(frozen=True)
+class _FileFacts:
+    """What the cross-file checks need of one UFF (not its FRF array, so 38 files are not held at once)."""
+
+    outputs: frozenset
+    units: str
+    digest: str  # blake2b of the FRF values: equal only for the same data
+
+
+def _facts(frf) -> _FileFacts:
+    digest = hashlib.blake2b(frf.H.tobytes(), digest_size=16).hexdigest()
+    return _FileFacts(frozenset(frf.outputs), frf.units or "", digest)
+
+
+def _check_consistency(campaign: Campaign, facts: dict[Path, _FileFacts], manifest: Path) -> None:
     """Across files: every blade test measures the same DOFs, the disk test not those; no two files hold the same
-    FRFs; without a manifest unit label, every file carries the same one."""
+    FRFs; without a manifest unit label, every file carries the same units (``ema.frf.unit_factor`` 1: equal
+    labels, or two spellings of one unit)."""
     tests = {t.file: t for t in campaign.tests}
-    blade_dofs = Counter(frozenset(frfs[t.file].outputs) for t in campaign.of_type("blade"))
+    blade_dofs = Counter(facts[t.file].outputs for t in campaign.of_type("blade"))
     if blade_dofs:
         common, n = blade_dofs.most_common(1)[0]
         for t in campaign.of_type("blade"):
-            if frozenset(frfs[t.file].outputs) != common and n > 1:
-                raise CampaignError(f"{t.file}: measures {sorted(frfs[t.file].outputs)[:4]}…, not the DOFs of the "
+            if facts[t.file].outputs != common and n > 1:
+                raise CampaignError(f"{t.file}: measures {sorted(facts[t.file].outputs)[:4]}…, not the DOFs of the "
                                     f"other blade tests ({sorted(common)[:4]}…): is it a blade test ({manifest.name} "
                                     f"tests, blade {t.index})?")
         for t in campaign.of_type("disk"):
-            if frozenset(frfs[t.file].outputs) == common:
+            if facts[t.file].outputs == common:
                 raise CampaignError(f"{t.file}: measures exactly the blade tests' DOFs: is it a blade test "
                                     f"({manifest.name} gives it as the disk test)?")
     seen: dict[str, Path] = {}
-    for path, frf in frfs.items():
-        digest = hashlib.blake2b(frf.H.tobytes(), digest_size=16).hexdigest()
-        if digest in seen:
-            raise CampaignError(f"{path}: the same FRFs as {seen[digest].name} ({manifest.name} tests: "
-                                f"{tests[seen[digest]].type} and {tests[path].type}); one file copied under two names?")
-        seen[digest] = path
-    unlabelled = {p: (frf.units or "").replace(" ", "") for p, frf in frfs.items() if tests[p].units is None}
-    labels = Counter(unlabelled.values())
-    if len(labels) > 1:
-        usual = labels.most_common(1)[0][0]
-        odd = next(p for p, label in unlabelled.items() if label != usual)
-        raise CampaignError(f"{odd}: FRF units {frfs[odd].units!r}, but the other files carry {usual!r}: convert "
-                            f"the file, or give each test's units in {manifest.name} (units / frf_units)")
+    for path, fact in facts.items():
+        if fact.digest in seen:
+            first = seen[fact.digest]
+            raise CampaignError(f"{path}: the same FRFs as {first.name} ({manifest.name} tests: {tests[first].type} "
+                                f"and {tests[path].type}); one file copied under two names?")
+        seen[fact.digest] = path
+    free = {p: fact.units for p, fact in facts.items() if tests[p].units is None}
+    if free:
+        usual = Counter(free.values()).most_common(1)[0][0]
+        odd = next((p for p, units in free.items() if unit_factor(units, usual) != 1.0), None)
+        if odd is not None:
+            raise CampaignError(f"{odd}: FRF units {free[odd]!r}, but the other files carry {usual!r}: convert "
+                                f"the file, or give each test's units in {manifest.name} (units / frf_units)")
 
 
 def check_files(campaign: Campaign, say=lambda msg: None) -> None:
@@ -114,10 +131,11 @@ def check_files(campaign: Campaign, say=lambda msg: None) -> None:
     import ema
 
     manifest = campaign.root / "campaign.toml"
-    frfs = {}
+    facts = {}
     for t in campaign.tests:
         say(f"checking {t.file.name}")
-        frf = frfs[t.file] = ema.read_uff(t.file)
+        frf = ema.read_uff(t.file)
+        facts[t.file] = _facts(frf)
         if t.units is not None and (frf.units or "").replace(" ", "") != t.units.replace(" ", ""):
             raise CampaignError(f"{t.file}: FRF units {frf.units!r}, but {manifest.name} says {t.units!r} "
                                 "(units / frf_units): convert the file or correct the manifest")
@@ -125,7 +143,7 @@ def check_files(campaign: Campaign, say=lambda msg: None) -> None:
             check_numbering(t, {int(n) for n, _ in frf.outputs}, manifest)
         if t.picks is not None:
             ema.load_picks(t.picks)
-    _check_consistency(campaign, frfs, manifest)
+    _check_consistency(campaign, facts, manifest)
     for f in campaign.films:
         joint, flank, source = _film_identity(f.file)
         for what, said, given in (("joint", joint, f.joint), ("flank", flank, f.flank)):

@@ -36,6 +36,7 @@ def unknown_key_message(table: dict, allowed: tuple[str, ...], where: str) -> st
 
 _FILM_NUMBERS = ("pixel_size", "contact_level", "white", "threshold_pressure", "p_sat")
 _FILM_PAIRS = ("grid", "spacing", "origin", "node_origin")
+_FILM_GEOMETRY = ("origin", "spacing", "pixel_size")  # identify.film.FilmGeometry needs all three
 
 
 def _number(v) -> bool:
@@ -51,9 +52,9 @@ def film_meta_message(meta: dict, where: str) -> str | None:
     for key in _FILM_PAIRS:
         if key in meta and not (isinstance(meta[key], list) and len(meta[key]) == 2 and all(map(_number, meta[key]))):
             return f"{where}: {key} = {meta[key]!r}, expected two numbers [row, col]"
-    geometry = [k for k in ("origin", "spacing", "pixel_size") if k in meta]
-    if geometry and len(geometry) < 3:
-        missing = [k for k in ("origin", "spacing", "pixel_size") if k not in meta]
+    geometry = [k for k in _FILM_GEOMETRY if k in meta]
+    if geometry and len(geometry) < len(_FILM_GEOMETRY):
+        missing = [k for k in _FILM_GEOMETRY if k not in meta]
         return f"{where}: film geometry gives {', '.join(geometry)} but lacks {', '.join(missing)} (all three or none)"
     if _number(meta.get("contact_level")) and _number(meta.get("white")) and meta["contact_level"] >= meta["white"]:
         return (f"{where}: contact_level = {meta['contact_level']} is not below white = {meta['white']}: every pixel "

@@ -50,11 +50,13 @@ def lookup(doc: dict, key: str):
 
 @dataclass(frozen=True)
 class Row:
-    """One table row: its label, its figures as printed, and where each comes from (``file:key``)."""
+    """One table row: its label, its figures as printed, where each comes from (``file:key``), and the command
+    that measures them (performance rows)."""
 
     label: str
     cells: tuple[str, ...]
     sources: tuple[str, ...]
+    command: str = ""
 
 
 def _fmt(value, spec: str) -> str:
@@ -139,18 +141,17 @@ def performance_rows(docs: dict) -> list[Row]:
     """One row per benchmark figure: figure, the reference measured in the same run, and their ratio."""
     rows = []
     for label, command, f, figures in _PERFORMANCE:
-        row = _row(f"{label}|{command}", docs, [(f, k, spec) for k, spec in figures])
-        rows.append(Row(row.label, row.cells + ("",) * (3 - len(row.cells)), row.sources))
+        row = _row(label, docs, [(f, k, spec) for k, spec in figures])
+        rows.append(Row(label, row.cells + ("",) * (3 - len(row.cells)), row.sources, command))
     return rows
 
 
 def _table(header: list[str], rows: list[Row], with_command: bool = False) -> list[str]:
     lines = ["| " + " | ".join(header + ["source"]) + " |", "|" + "---|" * (len(header) + 1)]
     for r in rows:
-        label = r.label.split("|")
-        cmd = [f"`{label[1]}`"] if with_command else []
+        cmd = [f"`{r.command}`"] if with_command else []
         src = ", ".join(f"`{s}`" for s in r.sources)
-        lines.append("| " + " | ".join([label[0], *r.cells, *cmd, src]) + " |")
+        lines.append("| " + " | ".join([r.label, *r.cells, *cmd, src]) + " |")
     return lines
 
 
@@ -160,7 +161,7 @@ _PERF_HEADER = ["what", "measured", "reference", "ratio", "command"]
 
 
 def _pad(rows: list[Row], n: int) -> list[Row]:
-    return [Row(r.label, r.cells + ("",) * (n - len(r.cells)), r.sources) for r in rows]
+    return [Row(r.label, r.cells + ("",) * (n - len(r.cells)), r.sources, r.command) for r in rows]
 
 
 def readme_blocks(docs: dict) -> dict[str, str]:
