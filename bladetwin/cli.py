@@ -12,6 +12,8 @@ import logging
 import sys
 import zipfile
 
+from .user_warnings import install as install_warnings
+
 __all__ = ["main", "build_parser", "error_message"]
 
 # Sub-command modules, in help order. Each must define ``register(subparsers) -> None``.
@@ -35,6 +37,7 @@ def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING, format="%(levelname)s %(message)s")
+    install_warnings()  # every warning a command does not record itself: one line on stderr, no source line
     try:
         return int(args.func(args) or 0)
     except (ValueError, OSError, KeyError, zipfile.BadZipFile, MemoryError) as exc:

@@ -154,6 +154,8 @@ def _print_summary(s: dict, report: Path) -> None:
     print(format_table(["Table 8", "mean |Δf| %", "mean MAC"], rows, "{:.3f}"))
     for n in s["notes"]:
         print(f"note: {n}")
+    if s.get("warnings"):
+        print(f"{len(s['warnings'])} warning(s), printed above as they arose; also in summary.json and the report")
     t = s["timings_s"]
     print("time (s): " + ", ".join(f"{k} {v:.1f}" for k, v in t.items()))
     print(f"report: {report}")

@@ -33,6 +33,7 @@ from rom.pattern_io import save_patterns
 from .run_figures import plot_bias, plot_blade_deltas, plot_d1b_features, plot_joint_patterns
 from .stages import PAPER_TABLE8, RunResult
 from .stages.bias import MATCH_WINDOW
+from .user_warnings import emit, recording, unique
 from .util import atomic_savefig, atomic_write_text
 
 __all__ = ["write_outputs", "write_sensitivity", "summary_of"]
@@ -105,10 +106,24 @@ def _ema_tables(res: RunResult, out: Path, notes: list[str]) -> list[dict]:
     asm = [fit for t, fit in res.ema.values() if t.type == "assembly"]
     if asm:
         m = asm[0].model
-        _csv(out / "assembly_modes.csv", ["mode", "frequency (Hz)", "damping (%)"],
-             [[k + 1, float(m.frequencies_hz[k]), float(100 * m.damping_ratio[k])] for k in range(m.n_modes)])
-        tables.append({"file": "assembly_modes.csv", "caption": "Full-assembly modes found by the EMA."})
+        f_std = m.frequency_std_hz if m.frequency_std_hz is not None else np.full(m.n_modes, np.nan)
+        z_std = m.damping_std if m.damping_std is not None else np.full(m.n_modes, np.nan)
+        _csv(out / "assembly_modes.csv", ["mode", "frequency (Hz)", "σ frequency (Hz)", "damping (%)", "σ damping (%)"],
+             [[k + 1, float(m.frequencies_hz[k]), _blank(f_std[k]), float(100 * m.damping_ratio[k]),
+               _blank(100 * z_std[k])] for k in range(m.n_modes)])
+        tables.append({"file": "assembly_modes.csv", "caption": "Full-assembly modes found by the EMA, each with "
+                       "its standard deviation σ (the fit's linearised covariance, docs/ema.md; empty: its window "
+                       "is too short to tell)."})
     return tables
+
+
+def _blank(v: float):
+    return "" if not np.isfinite(v) else float(v)
+
+
+def ema_modes(res: RunResult) -> dict:
+    """summary.json's ``ema``: every test's modes (Hz, damping ratio) with their standard deviations."""
+    return {name: fit.model.as_records() for name, (_, fit) in res.ema.items()}
 
 
 def _ema_section(res: RunResult, out: Path, notes: list[str]) -> dict:
@@ -340,13 +355,18 @@ def write_outputs(res: RunResult, out: Path, *, command: str = "bladetwin run") 
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     notes: list[str] = []
-    sections = [_ema_section(res, out, notes), _patterns_section(res, out)]
-    ident, joints, geo = _identification_section(res, out)
-    d1b, d1b_summary = _d1b_section(res, out)
-    sections += [ident, d1b, _full_section(res, out)]
+    with recording() as texts:  # e.g. a figure's or a table's warning: to summary.json, not only stderr
+        sections = [_ema_section(res, out, notes), _patterns_section(res, out)]
+        ident, joints, geo = _identification_section(res, out)
+        d1b, d1b_summary = _d1b_section(res, out)
+        sections += [ident, d1b, _full_section(res, out)]
+    for text in unique(texts):
+        emit(text)
     summary = summary_of(res, command)
     summary["notes"] = summary["notes"] + notes
-    summary.update(_clean({"joints": joints, "sections": sections, "geometric": geo, "d1b": d1b_summary}))
+    summary["warnings"] = unique(summary["warnings"] + texts)
+    summary.update(_clean({"joints": joints, "sections": sections, "geometric": geo, "d1b": d1b_summary,
+                           "ema": ema_modes(res)}))
     summary["files"] = {"patterns": "identified_patterns.npz", "rom_modes_uff": "identified_rom_modes.uff"}
     atomic_write_text(out / "summary.json", json.dumps(summary, indent=2, allow_nan=False, default=_nan) + "\n")
     return summary
@@ -382,7 +402,7 @@ def summary_of(res: RunResult, command: str) -> dict:
         "bias": {"enabled": res.options.bias, "per_mode_pct": (100 * res.features.bias).tolist(),
                  "spread_pct": (100 * res.features.spread).tolist(),
                  "joints": [j for j in c.known_joints if j in set(res.joints.tolist())]},
-        "cases": res.cases, "paper_table8": PAPER_TABLE8, "notes": list(res.notes),
+        "cases": res.cases, "paper_table8": PAPER_TABLE8, "notes": list(res.notes), "warnings": list(res.warnings),
         "settings": {"n_patterns": res.options.n_patterns, "scale": res.options.scale, "seed": res.options.seed,
                      "step_pct": res.options.step_pct, "n_features": res.options.n_features,
                      "refine_max_solves": res.options.refine},

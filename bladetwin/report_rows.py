@@ -380,6 +380,7 @@ def report_context(out_dir: Path, path: Path, summary: dict) -> dict:
         "bias": _bias_table(summary),
         "table8": _table8(summary),
         "notes": notes,
+        "warnings": [str(w) for w in _list(summary.get("warnings")) if str(w).strip()],
         "timings": _timings(summary),
         "joints": _joints(summary),
         "sections": _sections(folder, summary),

@@ -27,6 +27,7 @@ from .stages import (
     gather,
 )
 from .stages.patterns import read_films
+from .user_warnings import recording, unique
 
 __all__ = ["STAGE_GROUPS", "check_campaign", "run_campaigns", "run_nodes"]
 
@@ -102,12 +103,15 @@ def run_campaigns(campaigns: Iterable[Campaign], opts: RunOptions | None = None,
     t0 = time.perf_counter()
     opts = RunOptions() if opts is None else opts
     campaigns = list(campaigns)
+    store = Store(opts.cache_dir)
+    runner = Runner(store, opts.workers, say)
+    checked: list[list[str]] = []
     for c in campaigns:
         say(f"checking the files of {c.name}")
-        check_campaign(c)
-    store = Store(opts.cache_dir)
+        with recording() as texts:
+            check_campaign(c)
+        checked.append(runner.emit(unique(texts)))
     pipeline, sources, prefixes = _graph(campaigns, opts, store, say)
-    runner = Runner(store, opts.workers, say)
     say(f"running {len(pipeline)} stage nodes on {opts.workers} worker(s); the store is {store.root}")
     res = runner.run(pipeline, pipeline.names(), sources)
     out = []
@@ -117,8 +121,10 @@ def run_campaigns(campaigns: Iterable[Campaign], opts: RunOptions | None = None,
         view = _Prefixed(res, pre) if pre else res
         counts = {"computed": sum(n.startswith(pre) for n in runner.computed),
                   "reused": sum(n.startswith(pre) for n in runner.reused)}
-        out.append(replace(gather(view, c, opts, sources[pre + "fe_model"].value, timings), stage_counts=counts))
-        out[-1].notes.extend(runner.warnings)  # e.g. a damaged store entry, recomputed: in summary.json too
+        with recording() as texts:
+            res_c = gather(view, c, opts, sources[pre + "fe_model"].value, timings)
+        found = unique([*checked[len(out)], *runner.warnings_of(pre), *runner.emit(unique(texts))])
+        out.append(replace(res_c, stage_counts=counts, warnings=found))
     return out
 
 

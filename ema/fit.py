@@ -22,6 +22,7 @@ from .modal import ModalModel
 from .poles import PoleSet, band_data, merge_polesets, single_thread_blas
 from .selection import PoleSelection, select_auto, select_near, select_picks
 from .stabilization import StabilityCriteria, StabilizationDiagram, stabilize
+from .uncertainty import order_spread, pole_std
 
 __all__ = ["METHODS", "estimate_poles", "local_poles", "EMAResult", "fit", "mode_dominance"]
 
@@ -346,6 +347,10 @@ def fit(
             dropped = [f for f in dropped if inside(np.array([f]))[0]]
             diagram = _restrict(diagram, user_band)
             selection = _subset(selection, inside(selection.frequencies_hz))
+        if model.n_modes:  # each mode's standard deviations: the fit's covariance and the scatter over orders
+            f_std, z_std = pole_std(frf, model.poles, user_band)
+            f_std = np.hypot(f_std, order_spread(model.frequencies_hz, model.damping_ratio, diagram))
+            model = replace(model, frequency_std_hz=f_std, damping_std=z_std)
     quality = fit_quality(frf, model) if model.n_modes else np.zeros((frf.n_outputs, frf.n_inputs))
     log.info("%s: %d modes in %.6g-%.6g Hz", diagram.method, model.n_modes, *diagram.band_hz)
     return EMAResult(diagram=diagram, selection=selection, model=model, quality=quality, dominance=dom,

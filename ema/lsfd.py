@@ -139,6 +139,52 @@ def _basis_derivatives(poles: np.ndarray, freq_hz: np.ndarray, form: str) -> tup
     return c1, c2
 
 
+class _VarPro:
+    """The variable-projection least-squares problem of :func:`refine_poles` on one band.
+
+    ``Yr`` are the band's FRFs (each scaled to unit RMS, real and imaginary parts stacked), compressed onto
+    their dominant right singular directions (as many as model columns): the signal subspace, less noise.
+    """
+
+    def __init__(self, f: np.ndarray, Yr: np.ndarray, form: str, residuals: bool) -> None:
+        self.f, self.Yr, self.form, self.residuals = f, Yr, form, residuals
+
+    @classmethod
+    def of(cls, frf: FRFSet, band, residuals: bool, n_modes: int) -> _VarPro:
+        f, Y, _ = _band_lines(frf, band, "frf", residuals)
+        n_c = 2 * n_modes + (2 if residuals else 0)
+        Yr = np.vstack([Y.real, Y.imag])
+        if Yr.shape[1] > n_c:
+            _, _, Vt = np.linalg.svd(Yr, full_matrices=False)
+            Yr = Yr @ Vt[:n_c].T
+        return cls(f, Yr, frf.form, residuals)
+
+    def evaluate(self, lam: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Residual (2 n_f, k), linear coefficients (n_c, k) and the basis' orthonormal Q at poles ``lam``."""
+        B = _basis(lam, self.f, self.form, self.residuals)
+        A = np.vstack([B.real, B.imag])
+        scale = np.linalg.norm(A, axis=0)
+        scale[scale == 0] = 1.0
+        Qa, Ra = np.linalg.qr(A / scale)
+        proj = Qa.T @ self.Yr
+        c = np.linalg.solve(Ra, proj) / scale[:, None] if np.all(np.abs(np.diag(Ra)) > 1e-14) else (
+            np.linalg.lstsq(A, self.Yr, rcond=None)[0]
+        )
+        return self.Yr - Qa @ proj, c, Qa
+
+    def jacobian(self, lam: np.ndarray, c: np.ndarray, Qa: np.ndarray) -> np.ndarray:
+        """d(residual)/d(f_r [Hz], ζ_r), Kaufman's approximation, shape (2 n_f · k, 2 n_modes)."""
+        n, k = lam.size, self.Yr.shape[1]
+        d1, d2 = _basis_derivatives(lam, self.f, self.form)
+        J = np.empty((self.Yr.shape[0] * k, 2 * n))
+        for r in range(n):
+            for p in range(2):
+                dB = d1[:, r, p][:, None] * c[r][None, :] + d2[:, r, p][:, None] * c[n + r][None, :]
+                dBr = np.vstack([dB.real, dB.imag])
+                J[:, p * n + r] = -(dBr - Qa @ (Qa.T @ dBr)).ravel()
+        return J
+
+
 def refine_poles(
     frf: FRFSet,
     poles: np.ndarray,
@@ -177,39 +223,11 @@ def refine_poles(
     n = poles.size
     if n == 0:
         return poles
-    f, Y, _ = _band_lines(frf, band, "frf", residuals)
-    n_c = 2 * n + (2 if residuals else 0)
-    Yr = np.vstack([Y.real, Y.imag])
-    if Yr.shape[1] > n_c:
-        _, _, Vt = np.linalg.svd(Yr, full_matrices=False)
-        Yr = Yr @ Vt[:n_c].T
-    k = Yr.shape[1]
-    if Yr.shape[0] * k * 2 * n > max_size:
-        log.info("pole refinement skipped: %d modes on %d lines is beyond max_size", n, f.size)
+    vp = _VarPro.of(frf, band, residuals, n)
+    if vp.Yr.shape[0] * vp.Yr.shape[1] * 2 * n > max_size:
+        log.info("pole refinement skipped: %d modes on %d lines is beyond max_size", n, vp.f.size)
         return poles
-
-    def evaluate(lam: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        B = _basis(lam, f, frf.form, residuals)
-        A = np.vstack([B.real, B.imag])
-        scale = np.linalg.norm(A, axis=0)
-        scale[scale == 0] = 1.0
-        Qa, Ra = np.linalg.qr(A / scale)
-        proj = Qa.T @ Yr
-        c = np.linalg.solve(Ra, proj) / scale[:, None] if np.all(np.abs(np.diag(Ra)) > 1e-14) else (
-            np.linalg.lstsq(A, Yr, rcond=None)[0]
-        )
-        r = Yr - Qa @ proj
-        return r, c, Qa
-
-    def jacobian(lam: np.ndarray, c: np.ndarray, Qa: np.ndarray) -> np.ndarray:
-        d1, d2 = _basis_derivatives(lam, f, frf.form)
-        J = np.empty((Yr.shape[0] * k, 2 * n))
-        for r in range(n):
-            for p in range(2):
-                dB = d1[:, r, p][:, None] * c[r][None, :] + d2[:, r, p][:, None] * c[n + r][None, :]
-                dBr = np.vstack([dB.real, dB.imag])
-                J[:, p * n + r] = -(dBr - Qa @ (Qa.T @ dBr)).ravel()
-        return J
+    evaluate, jacobian = vp.evaluate, vp.jacobian
 
     fr, zr = modal_from_pole(poles)
     zr = np.clip(zr, 1e-6, None)

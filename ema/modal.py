@@ -80,6 +80,10 @@ class ModalModel:
         Pole estimator ("lscf", "lsrf", ...) or "" when imported.
     scaling : str
         "mass" or "unit".
+    frequency_std_hz, damping_std : ndarray, shape (n_modes,) or None
+        Standard deviation of each natural frequency (Hz) and damping ratio: the fit's linearised covariance
+        (:func:`ema.uncertainty.pole_std`), for the frequency with the scatter over model orders added
+        (:func:`ema.uncertainty.order_spread`); NaN where a mode's window is too short to tell.
     """
 
     frequencies_hz: np.ndarray
@@ -96,6 +100,8 @@ class ModalModel:
     band_hz: tuple[float, float] | None = None
     method: str = ""
     scaling: str = "unit"
+    frequency_std_hz: np.ndarray | None = None
+    damping_std: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         f = np.asarray(self.frequencies_hz, dtype=np.float64).reshape(-1)
@@ -123,6 +129,13 @@ class ModalModel:
             if q.shape != f.shape:
                 raise ValueError(f"ModalModel: {q.size} quality values for {f.size} modes")
             object.__setattr__(self, "quality", q)
+        for name in ("frequency_std_hz", "damping_std"):
+            if getattr(self, name) is not None:
+                v = np.asarray(getattr(self, name), dtype=np.float64).reshape(-1)
+                if v.shape != f.shape:
+                    raise ValueError(f"ModalModel: {v.size} values of {name} for {f.size} modes")
+                v.setflags(write=False)
+                object.__setattr__(self, name, v)
         if self.residues is not None:
             A = np.asarray(self.residues, dtype=np.complex128)
             if A.shape != (f.size, len(self.outputs), len(self.inputs)):
@@ -153,6 +166,8 @@ class ModalModel:
             shapes=self.shapes[:, idx],
             quality=None if self.quality is None else self.quality[idx],
             residues=None if self.residues is None else self.residues[idx],
+            frequency_std_hz=None if self.frequency_std_hz is None else self.frequency_std_hz[idx],
+            damping_std=None if self.damping_std is None else self.damping_std[idx],
         )
 
     def sorted(self) -> ModalModel:
@@ -160,11 +175,15 @@ class ModalModel:
         return self.take(np.argsort(self.frequencies_hz, kind="stable"))
 
     def as_records(self) -> list[dict]:
-        """One dict per mode: ``frequency_hz``, ``damping_ratio`` and ``quality`` when known (JSON-ready)."""
+        """One dict per mode: ``frequency_hz``, ``damping_ratio``, and ``quality`` and the standard deviations
+        (``frequency_std_hz``, ``damping_std``) when known (JSON-ready)."""
         out = []
         for m in range(self.n_modes):
             rec = {"frequency_hz": float(self.frequencies_hz[m]), "damping_ratio": float(self.damping_ratio[m])}
             if self.quality is not None:
                 rec["quality"] = float(self.quality[m])
+            if self.frequency_std_hz is not None:
+                rec["frequency_std_hz"] = float(self.frequency_std_hz[m])
+                rec["damping_std"] = float(self.damping_std[m]) if self.damping_std is not None else None
             out.append(rec)
         return out

@@ -48,6 +48,7 @@ from scipy.ndimage import map_coordinates
 from rom.contact import ContactPattern
 
 from .errors import IdentifyError
+from .film_checks import check_imprint_in_cells, check_imprint_in_frame, match_gray_scale
 
 __all__ = [
     "FilmGeometry",
@@ -409,12 +410,28 @@ def _box_geometry(box: tuple[float, float, float, float], grid: tuple[int, int])
     return FilmGeometry(origin=(top + 0.5 * sr, left + 0.5 * sc), spacing=(sr, sc), pixel_size=1.0, grid=grid)
 
 
+def _imprint(image: np.ndarray, white: float) -> tuple[float, float, float, float]:
+    try:
+        return find_imprint(image, white)
+    except IdentifyError as e:
+        raise IdentifyError(f"blank film, {e}") from None
+
+
+def _cells_box(geometry: FilmGeometry, grid: tuple[int, int]) -> tuple[float, float, float, float]:
+    """(top, bottom, left, right) pixel edges of the nodes' cells: the node box widened by half a spacing."""
+    sr, sc = geometry.pixels_per_spacing()
+    top, left = geometry.origin[0] - 0.5 * sr, geometry.origin[1] - 0.5 * sc
+    return top, top + grid[0] * sr, left, left + grid[1] * sc
+
+
+def _warn(path, note: str) -> None:
+    if note:
+        warnings.warn(f"film {path if path is not None else '<array>'}: {note}", UserWarning, stacklevel=4)
+
+
 def _cells(image: np.ndarray, geometry: FilmGeometry, grid: tuple[int, int]) -> np.ndarray:
     """Pixels of the nodes' cells (node box widened by half a spacing), ignoring rotation: the Otsu sample."""
-    rows, cols = grid
-    sr, sc = geometry.pixels_per_spacing()
-    r0, c0 = geometry.origin[0] - 0.5 * sr, geometry.origin[1] - 0.5 * sc
-    r1, c1 = r0 + rows * sr, c0 + cols * sc
+    r0, r1, c0, c1 = _cells_box(geometry, grid)
     h, w = image.shape
     ra, rb = max(0, math.ceil(r0)), min(h, math.floor(r1) + 1)
     ca, cb = max(0, math.ceil(c0)), min(w, math.floor(c1) + 1)
@@ -430,6 +447,7 @@ def map_film(
     white: float | None = None,
     fallback: str = "imprint",
     path: str | os.PathLike | None = None,
+    check: bool = True,
 ) -> FilmMap:
     """Sample a film image onto a flank's contact grid.
 
@@ -452,6 +470,9 @@ def map_film(
         image (a scan cropped to the flank). Ignored when ``geometry`` is given.
     path : str or path-like, optional
         The image's file, for messages and the result.
+    check : bool
+        Compare the image with its metadata first (:mod:`identify.film_checks`: gray scale, blank film, imprint
+        inside the grid's cells or the frame). Default True; off only for arrays that are not film scans.
 
     Returns
     -------
@@ -467,12 +488,12 @@ def map_film(
     """
     name = str(path) if path is not None else "<array>"
     try:
-        return _map_film(image, grid, geometry, threshold, white, fallback, path)
+        return _map_film(image, grid, geometry, threshold, white, fallback, path, check)
     except IdentifyError as e:
         raise IdentifyError(f"film {name}: {e}") from None
 
 
-def _map_film(image, grid, geometry, threshold, white, fallback, path) -> FilmMap:
+def _map_film(image, grid, geometry, threshold, white, fallback, path, check) -> FilmMap:
     a = np.asarray(image)
     if a.ndim != 2 or min(a.shape) < 2:
         raise IdentifyError(f"expected a 2-D grayscale image of at least 2×2 pixels, got shape {a.shape}")
@@ -491,6 +512,10 @@ def _map_film(image, grid, geometry, threshold, white, fallback, path) -> FilmMa
             raise IdentifyError(f"white (unexposed gray level) must be positive and finite, got {white!r}")
     if not w > 0:
         raise IdentifyError("the image is black: no unexposed film to scale the gray values by")
+    if check and white is not None:  # the scan against its metadata's gray scale: refused, or read as stated
+        t_given = threshold if isinstance(threshold, int | float) and math.isfinite(threshold) else None
+        a, note = match_gray_scale(a, w, unexposed_level(a), t_given)
+        _warn(path, note)
 
     if geometry is not None:
         if not isinstance(geometry, FilmGeometry):
@@ -499,10 +524,15 @@ def _map_film(image, grid, geometry, threshold, white, fallback, path) -> FilmMa
             raise IdentifyError(f"the film's metadata is for a {geometry.grid[0]}×{geometry.grid[1]} grid, "
                                 f"the model's grid is {rows}×{cols}")
         geo, source = geometry, "given"
+        if check:
+            check_imprint_in_cells(_imprint(a, w), _cells_box(geo, grid), geo.pixels_per_spacing(), geo.pixel_size)
     elif fallback == "image":
         geo, source = _box_geometry((-0.5, a.shape[0] - 0.5, -0.5, a.shape[1] - 0.5), grid), "image"
     else:
-        geo, source = _box_geometry(find_imprint(a, w), grid), "imprint"
+        box = _imprint(a, w)
+        if check:
+            _warn(path, check_imprint_in_frame(box, a.shape))
+        geo, source = _box_geometry(box, grid), "imprint"
 
     sr, sc = geo.pixels_per_spacing()
     for axis, n, s in (("row", rows, sr), ("column", cols, sc)):

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
@@ -104,14 +105,16 @@ def bias_spread(measured_hz: dict[int, np.ndarray], rom_hz: dict[int, np.ndarray
     ratios = np.array([measured_hz[j] / rom_hz[j] - 1 for j in measured_hz])
     if len(ratios) < 2:
         return np.zeros(ratios.shape[1] if ratios.ndim == 2 else 0)
-    with np.errstate(all="ignore"):
+    with np.errstate(all="ignore"), warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # a mode no joint found: NaN, then 0 (nan_to_num)
         return np.nan_to_num(np.nanstd(ratios, axis=0))
 
 
 def known_bias(measured_hz: dict[int, np.ndarray], rom_hz: dict[int, np.ndarray]) -> np.ndarray:
     """Per-mode relative bias of the ROM on the filmed joints: median of f_measured / f_ROM − 1 (0: no joint)."""
     ratios = np.array([measured_hz[j] / rom_hz[j] - 1 for j in measured_hz])
-    with np.errstate(all="ignore"):
+    with np.errstate(all="ignore"), warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # a mode no joint found: NaN, then 0 (nan_to_num)
         b = np.nanmedian(np.where(np.isfinite(ratios), ratios, np.nan), axis=0) if ratios.size else np.zeros(0)
     return np.nan_to_num(b)
 

@@ -21,13 +21,14 @@ import scipy.sparse as sp
 
 from rom.fileio import atomic_path
 
-__all__ = ["PACKAGES", "FORMAT", "CodecError", "encode", "save", "load"]
+__all__ = ["PACKAGES", "FORMAT", "CodecError", "encode", "save", "load", "load_warnings"]
 
 #: The packages whose dataclasses a store entry may name.
 PACKAGES = ("ema", "rom", "identify", "bladetwin")
 #: Version of the stored types' fields, part of every node's key: raise it when a stored dataclass renames
-#: or drops a field, so old entries are never decoded into the new types (2: ``frequencies_hz`` in ema).
-FORMAT = 2
+#: or drops a field, so old entries are never decoded into the new types (2: ``frequencies_hz`` in ema; 3: each
+#: entry holds the warnings its computation raised, so a stored stage still reports them).
+FORMAT = 3
 
 
 class CodecError(ValueError):
@@ -120,14 +121,24 @@ def encode(value) -> tuple[dict, dict[str, np.ndarray]]:
     return _encode(value, arrays), arrays
 
 
-def save(path: str | os.PathLike, value) -> Path:
-    """Write ``value`` to ``path`` (``.npz``, atomic). Raises :class:`CodecError` for a value it cannot hold."""
+def save(path: str | os.PathLike, value, warnings: tuple[str, ...] | list[str] = ()) -> Path:
+    """Write ``value`` to ``path`` (``.npz``, atomic), with the user ``warnings`` its computation raised.
+
+    Raises :class:`CodecError` for a value it cannot hold.
+    """
     skeleton, arrays = encode(value)
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     with atomic_path(path) as tmp, open(tmp, "wb") as fh:
-        np.savez(fh, __skeleton__=np.array(json.dumps(skeleton)), **arrays)
+        np.savez(fh, __skeleton__=np.array(json.dumps(skeleton)), __warnings__=np.array(json.dumps(list(warnings))),
+                 **arrays)
     return path
+
+
+def load_warnings(path: str | os.PathLike) -> list[str]:
+    """The warnings :func:`save` stored with an entry (``[]`` if it holds none); the value itself is not read."""
+    with np.load(path, allow_pickle=False) as z:
+        return [str(w) for w in json.loads(str(z["__warnings__"]))] if "__warnings__" in z.files else []
 
 
 def load(path: str | os.PathLike):

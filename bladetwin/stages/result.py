@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 
@@ -58,6 +59,9 @@ class RunResult:
     #: Stage nodes of this campaign computed in this run and found in the store (``computed``, ``reused``):
     #: a run's timings are a cold run's only when nothing was reused.
     stage_counts: dict[str, int] = field(default_factory=dict)
+    #: What the user should know about the inputs and the run (one line each; :mod:`bladetwin.user_warnings`):
+    #: a film read under a stated interpretation, a stage's numerical warning, a damaged store entry recomputed.
+    warnings: list[str] = field(default_factory=list)
 
     @property
     def joints(self) -> np.ndarray:
@@ -103,8 +107,24 @@ def _refine_note(res: dict, campaign, opts: RunOptions) -> str:
             "→ refined: " + "; ".join(parts))
 
 
+def _film_note(films: dict) -> str | None:
+    """How films without full metadata were read (the reader's fallbacks), naming them: the interpretation taken."""
+    maps = [m for pair in films.values() for m in pair]
+    placed = [Path(m.name).name for m in maps if m.geometry_source != "given"]
+    otsu = [Path(m.name).name for m in maps if m.threshold_source == "otsu"]
+    parts = []
+    if placed:
+        parts.append(f"placed by their imprint's bounding box (no origin, spacing and pixel_size): {', '.join(placed)}")
+    if otsu:
+        parts.append(f"thresholded by Otsu's rule (no contact_level): {', '.join(otsu)}")
+    return ("Films " + "; ".join(parts) + ".") if parts else None
+
+
 def _notes(res: dict, campaign, opts: RunOptions, fits: dict) -> list[str]:
     notes = []
+    film_note = _film_note(res["films"])
+    if film_note:
+        notes.append(film_note)
     picked = [t.file.name for t, fit in fits.values() if fit.picked]
     if picked:
         notes.append("Picks files replaced the automatic pole selection for: " + ", ".join(picked) + ".")

@@ -21,6 +21,7 @@ from collections.abc import Callable, Iterable, Mapping
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from dataclasses import dataclass
 
+from ..user_warnings import emit, recording, unique
 from .graph import Node, Pipeline
 from .store import Store, content_key, node_key
 
@@ -99,19 +100,20 @@ def _resolve(spec: tuple):
     return _LOADED[ref]
 
 
-def _work(func: Callable, args: dict, params: dict, path: str) -> float:
-    """A worker node: resolve its inputs, compute, store the output; returns the seconds it computed."""
+def _work(func: Callable, args: dict, params: dict, path: str) -> tuple[float, list[str]]:
+    """A worker node: resolve its inputs, compute, store the output with the warnings it raised; returns the
+    seconds it computed and those warnings."""
     from threadpoolctl import threadpool_limits
 
     from .codec import save
 
     kwargs = {k: _resolve(s) for k, s in args.items()}
     t = time.perf_counter()
-    with threadpool_limits(1 if _SINGLE_THREAD else None):
+    with threadpool_limits(1 if _SINGLE_THREAD else None), recording() as texts:
         value = func(**kwargs, **params)
     seconds = time.perf_counter() - t
-    save(path, value)
-    return seconds
+    save(path, value, unique(texts))
+    return seconds, unique(texts)
 
 
 class Results(Mapping):
@@ -148,7 +150,11 @@ class Runner:
     def __init__(self, store: Store, workers: int = 2, say: Callable[[str], None] = lambda m: None) -> None:
         self.store, self.workers, self.say = store, int(workers), say
         self.state: dict[str, _State] = {}
+        #: Problems with the store itself (an unreadable entry, recomputed), for the user.
         self.warnings: list[str] = []
+        #: The user warnings each node raised when it was computed (now, or when its stored entry was).
+        self.node_warnings: dict[str, list[str]] = {}
+        self._emitted: set[str] = set()
         self.computed: list[str] = []
         self.reused: list[str] = []
         #: Seconds each computed node took (in its process).
@@ -180,6 +186,7 @@ class Runner:
             if s.status == "pending" and n.stored and (n.func_id, s.key) in self._finished_keys:
                 s.status = "stored"  # a twin node (another campaign's) computed it in this run
                 self.reused.append(n.name)
+                self._warned(n.name, self.store.warnings(n.func_id, s.key))
             if s.key is not None or n.content_key:
                 continue
             keys = {a: self.state[src].key for a, src in n.inputs.items()}
@@ -191,9 +198,10 @@ class Runner:
                 if problem is None:
                     s.status = "stored"
                     self.reused.append(n.name)
+                    self._warned(n.name, self.store.warnings(n.func_id, s.key))
                 else:
                     self.warnings.append(problem)
-                    self.say(f"warning: {problem}")
+                    emit(problem)
 
     def _demanded(self, name: str, memo: dict) -> bool:
         if name not in memo:
@@ -221,13 +229,34 @@ class Runner:
             s.key = content_key(s.value)
         self.computed.append(node.name)
 
+    def _warned(self, name: str, texts: list[str]) -> None:
+        """Keep a node's warnings and print each the first time this run meets it."""
+        self.node_warnings[name] = list(texts)
+        self.emit(texts)
+
+    def emit(self, texts: Iterable[str]) -> list[str]:
+        """Print each warning the first time this runner meets it (one line on stderr); returns ``texts``."""
+        texts = list(texts)
+        for text in texts:
+            if text not in self._emitted:
+                self._emitted.add(text)
+                emit(text)
+        return texts
+
+    def warnings_of(self, prefix: str = "") -> list[str]:
+        """The store's problems, then the warnings of the nodes named ``prefix…``, in pipeline order, once each."""
+        names = [n for n in self.pipeline.names() if n.startswith(prefix) and n in self.node_warnings]
+        return unique([*self.warnings, *(t for n in names for t in self.node_warnings[n])])
+
     def _run_here(self, node: Node) -> None:
         kwargs = {a: self.value(src) for a, src in node.inputs.items()}
         t = time.perf_counter()
-        value = node.func(**kwargs, **node.params)
+        with recording() as texts:
+            value = node.func(**kwargs, **node.params)
         seconds = time.perf_counter() - t
         if node.stored:
-            self.store.save(node.func_id, self.state[node.name].key, value)
+            self.store.save(node.func_id, self.state[node.name].key, value, unique(texts))
+        self._warned(node.name, unique(texts))
         self._finish(node, value, seconds)
         if node.where == "worker":
             self.say(f"  {node.label or node.name} ({seconds:.1f} s)")
@@ -300,5 +329,7 @@ class Runner:
             done, _ = wait(running, return_when=FIRST_COMPLETED)
             for fut in done:
                 node = running.pop(fut)
-                self._finish(node, seconds=fut.result())  # a node's own error surfaces here
+                seconds, texts = fut.result()  # a node's own error surfaces here
+                self._warned(node.name, texts)
+                self._finish(node, seconds=seconds)
                 self.say(f"  {node.label or node.name} ({time.perf_counter() - t0:.1f} s)")

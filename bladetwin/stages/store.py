@@ -78,14 +78,18 @@ class Store:
         path = self.path(func_id, key)
         try:
             with np.load(path, allow_pickle=False) as z:
-                str(z["__skeleton__"])
+                str(z["__skeleton__"]), str(z["__warnings__"])
             return None
         except Exception as exc:  # noqa: BLE001 - any unreadable entry is recomputed, whatever broke it
             path.unlink(missing_ok=True)
             return f"{path}: unreadable store entry ({type(exc).__name__}), recomputed"
 
-    def save(self, func_id: str, key: str, value) -> Path:
-        return codec.save(self.path(func_id, key), value)
+    def save(self, func_id: str, key: str, value, warnings: tuple[str, ...] | list[str] = ()) -> Path:
+        return codec.save(self.path(func_id, key), value, warnings)
+
+    def warnings(self, func_id: str, key: str) -> list[str]:
+        """The user warnings stored with an entry (raised when it was computed)."""
+        return codec.load_warnings(self.path(func_id, key))
 
     def load(self, func_id: str, key: str):
         return codec.load(self.path(func_id, key))

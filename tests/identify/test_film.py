@@ -134,7 +134,7 @@ def test_bilinear_sampling_on_pixel_centres():
     r, c = np.mgrid[0:60, 0:80].astype(float)
     image = 10.0 + 1.5 * r + 2.0 * c
     geo = FilmGeometry(origin=(3.25, 4.6), spacing=(0.012, 0.0031), pixel_size=0.001)  # 12 and 3.1 px
-    fm = map_film(image, (4, 20), geo, threshold=100.0, white=300.0)
+    fm = map_film(image, (4, 20), geo, threshold=100.0, white=300.0, check=False)  # a ramp, not a film
     i, j = np.meshgrid(np.arange(4), np.arange(20), indexing="ij")
     rr, cc = 3.25 + 12.0 * i, 4.6 + 3.1 * j
     assert np.allclose(fm.values, 10.0 + 1.5 * rr + 2.0 * cc, rtol=0, atol=1e-9)
@@ -327,14 +327,14 @@ def test_blank_film_has_no_imprint():
     blank = 230 + rng.normal(0, 1.0, (50, 50))
     with pytest.raises(IdentifyError, match="no imprint"):
         find_imprint(blank)
-    with pytest.raises(IdentifyError, match="<array>: no imprint"):
+    with pytest.raises(IdentifyError, match="<array>: blank film, no imprint"):
         map_film(blank, (3, 7))
 
 
 def test_no_contact_warns_with_the_value():
     image = np.full((30, 70), 220.0)
     with pytest.warns(UserWarning, match="no node is in contact at threshold 100"):
-        fm = map_film(image, (3, 7), FilmGeometry((4.5, 4.5), (10, 10)), threshold=100.0)
+        fm = map_film(image, (3, 7), FilmGeometry((4.5, 4.5), (10, 10)), threshold=100.0, check=False)
     assert not fm.contact.any()
 
 
@@ -342,10 +342,61 @@ def test_joint_pattern_needs_matching_grids():
     a = map_film(np.kron(np.eye(3, 7) * 200 + 20, np.ones((10, 10))), (3, 7), FilmGeometry((4.5, 4.5), (10, 10)),
                  threshold=100.0)
     with pytest.warns(UserWarning, match="every node is in contact"):
-        b = map_film(np.full((40, 40), 30.0), (2, 2), FilmGeometry((10, 10), (20, 20)), threshold=100.0)
+        b = map_film(np.full((40, 40), 30.0), (2, 2), FilmGeometry((10, 10), (20, 20)), threshold=100.0, check=False)
     with pytest.raises(IdentifyError, match=r"different grids: \(3, 7\) and \(2, 2\)"):
         contact_pattern(a, b)
     with pytest.warns(UserWarning, match="no node"):
-        c = map_film(np.full((30, 70), 230.0), (3, 7), FilmGeometry((4.5, 4.5), (10, 10)), threshold=10.0)
+        c = map_film(np.full((30, 70), 230.0), (3, 7), FilmGeometry((4.5, 4.5), (10, 10)), threshold=10.0,
+                     check=False)
     with pytest.raises(IdentifyError, match="no contact"):
         contact_pattern(c, c)
+
+
+# --- sanity checks against the metadata (identify.film_checks) ---------------------------------------------------
+
+
+def _rect_film(shape=(300, 300), box=(115, 185, 50, 250), rng=0):
+    """A film with a rectangular imprint (gray 60) on unexposed film (230); box = rows, cols. Grain σ = 0.5: the
+    scanner's blur leaves about that of lab.films' σ = 2 film grain."""
+    noise = np.random.default_rng(rng).normal(0, 0.5, shape)
+    image = np.full(shape, 230.0) + noise
+    image[box[0]:box[1], box[2]:box[3]] = 60.0 + noise[box[0]:box[1], box[2]:box[3]]
+    mid = (box[2] + box[3]) // 2
+    image[box[0]:box[1], mid - 10:mid + 10] = 200.0  # an island out of contact inside the imprint
+    return image
+
+
+def test_a_scan_rotated_by_90_degrees_is_refused_where_the_cells_are_not_square():
+    image = _rect_film()  # imprint 70 × 200 pixels: a 7 × 20 grid of 10-pixel cells
+    geo = FilmGeometry(origin=(119.5, 54.5), spacing=(10.0, 10.0), grid=(7, 20))
+    assert map_film(image, (7, 20), geo, threshold=145.0, white=230.0).contact.mean() == 18 / 20
+    rotated = r"<array>: the imprint spans 200 × 70 .* cells span 70 × 200.* rotated by 90°"
+    with pytest.raises(IdentifyError, match=rotated):
+        map_film(np.rot90(image), (7, 20), geo, threshold=145.0, white=230.0)
+
+
+def test_a_wrong_pixel_size_is_named_with_the_size_the_imprint_suggests():
+    image = _rect_film()
+    geo = FilmGeometry(origin=(119.5 + 70 / 6, 54.5 + 200 / 6), spacing=(0.01, 0.01), pixel_size=0.0015, grid=(7, 20))
+    with pytest.raises(IdentifyError, match=r"pixel_size = 0.0015: .* 1.50 × larger.* pixel_size ≈ 0.001\b"):
+        map_film(image, (7, 20), geo, threshold=145.0, white=230.0)
+
+
+def test_gray_scale_checks_against_white():
+    image = _rect_film()
+    geo = FilmGeometry(origin=(119.5, 54.5), spacing=(10.0, 10.0), grid=(7, 20))
+    with pytest.warns(UserWarning, match=r"16-bit scan of 8-bit metadata \(gray values divided by 257\)"):
+        fm = map_film(image * 257, (7, 20), geo, threshold=145.0, white=230.0)
+    assert fm.contact.mean() == 18 / 20 and fm.threshold == 145.0
+    with pytest.raises(IdentifyError, match=r"white = 230, .* level is 23\d\d.\d+ \(10\.?\d* ×\).* bit depth"):
+        map_film(image * 10, (7, 20), geo, threshold=145.0, white=230.0)
+    with pytest.raises(IdentifyError, match=r"contact_level = 145: .* not above it"):
+        map_film(image * 0.6, (7, 20), geo, threshold=145.0, white=230.0)
+
+
+def test_imprint_placement_checks_the_frame():
+    with pytest.warns(UserWarning, match="touches the image's left edge"):
+        map_film(_rect_film(box=(115, 185, 0, 200)), (7, 20))
+    rng = np.random.default_rng(1)
+    with pytest.raises(IdentifyError, match="<array>: the imprint fills the image up to every edge"):
+        map_film(25.0 + rng.normal(0, 2.0, (100, 100)), (3, 7))  # all black, no metadata

@@ -118,6 +118,59 @@ def test_5_typod_keys_are_refused_with_the_nearest_allowed_one(camp, capsys, whe
     _refused(camp, capsys, f"unknown key {key!r}", f"did you mean {hint!r}")
 
 
+def _film(camp, name="joint_01_L.png"):
+    import numpy as np
+    from PIL import Image
+
+    path = camp / "films" / name
+    with Image.open(path) as im:
+        return path, np.asarray(im)
+
+
+@pytest.mark.parametrize("fault, needles", [
+    ("white", ["joint_01_L.png", "blank film"]),
+    ("black", ["joint_01_L.png", "white = 235", "no unexposed film"]),
+    ("pixel_size", ["joint_01_L.png", "pixel_size", "1.5", "larger"]),
+])
+def test_4_unusable_films_are_refused(camp, capsys, fault, needles):
+    import numpy as np
+    from PIL import Image
+
+    path, image = _film(camp)
+    if fault == "pixel_size":  # the scan at 1.5× the metadata's pixel size: its imprint overflows the grid's cells
+        doc = _manifest(camp)
+        film = next(f for f in doc["films"] if f["file"].endswith("joint_01_L.png"))
+        film["pixel_size"] *= 1.5
+        _write_manifest(camp, doc)
+    else:
+        Image.fromarray(np.full_like(image, 235 if fault == "white" else 25)).save(path)
+    _refused(camp, capsys, *needles)
+
+
+def test_4_a_16_bit_scan_is_read_on_its_metadatas_scale_and_says_so(camp, tmp_path, capfd):
+    """The same film as 16 bits (× 257): read as 8-bit, with a warning on stderr (one line), in summary.json and
+    in the report; the contact grid is the 8-bit scan's."""
+    import numpy as np
+    from PIL import Image
+
+    from bladetwin.campaign import read_campaign
+    from bladetwin.stages.patterns import read_films
+
+    path, image = _film(camp)
+    before = read_films(read_campaign(camp))[1][0].contact
+    Image.fromarray(image.astype(np.uint16) * 257).save(path)
+    capfd.readouterr()
+    out = tmp_path / "out"
+    assert main(["run", str(camp), "--refine", "0", "--n", "4", "--out", str(out),
+                 "--cache-dir", str(tmp_path / "store"), "--quiet"]) == 0
+    err = [line for line in capfd.readouterr().err.splitlines() if "joint_01_L.png" in line]
+    assert len(err) == 1 and err[0].startswith("bladetwin: warning: film ") and "16-bit" in err[0], err
+    summary = json.loads((out / "summary.json").read_text())
+    assert [w for w in summary["warnings"] if "joint_01_L.png" in w and "divided by 257" in w]
+    assert "divided by 257" in (out / "report.html").read_text()
+    assert np.array_equal(read_films(read_campaign(camp))[1][0].contact, before)
+
+
 def test_6_units_mixed_across_files_without_a_manifest_label(camp, capsys):
     doc = _manifest(camp)
     del doc["campaign"]["frf_units"]

@@ -28,6 +28,30 @@ def reference(tmp_path_factory):
     return root, json.loads((root / "ref" / "summary.json").read_text())
 
 
+def _close(a, b, rel: float = 1e-6) -> bool:
+    """JSON values equal, numbers to ``rel`` relative."""
+    if isinstance(a, dict) and isinstance(b, dict):
+        return a.keys() == b.keys() and all(_close(a[k], b[k], rel) for k in a)
+    if isinstance(a, list) and isinstance(b, list):
+        return len(a) == len(b) and all(_close(x, y, rel) for x, y in zip(a, b, strict=True))
+    if isinstance(a, float) and isinstance(b, float):
+        return a == pytest.approx(b, rel=rel, abs=1e-12)
+    return a == b
+
+
+def _first_difference(a, b, where=""):
+    """Where two JSON values first differ, and the two values there (for the failure message)."""
+    if isinstance(a, dict) and isinstance(b, dict):
+        for k in sorted(set(a) | set(b), key=str):
+            if a.get(k) != b.get(k):
+                return _first_difference(a.get(k), b.get(k), f"{where}/{k}")
+    if isinstance(a, list) and isinstance(b, list) and len(a) == len(b):
+        for i, (x, y) in enumerate(zip(a, b, strict=True)):
+            if x != y:
+                return _first_difference(x, y, f"{where}[{i}]")
+    return where, a, b
+
+
 def _run_until(root, store, label: str, sig: int) -> tuple[int, str]:
     """Start a run, send ``sig`` when the progress line ``label`` appears; returns (exit code, stderr)."""
     cmd = [sys.executable, "-m", "bladetwin", "run", str(root / "camp"), *SETTINGS, "--out", str(root / "o"),
@@ -51,7 +75,8 @@ def _run_until(root, store, label: str, sig: int) -> tuple[int, str]:
 
 
 @pytest.mark.parametrize("label, sig", [("Rubin blade built", signal.SIGINT), ("  dataset (", signal.SIGKILL),
-                                        ("refined (experimental input)", signal.SIGINT)])
+                                        ("refined (experimental input)", signal.SIGINT),
+                                        ("refined (experimental input)", signal.SIGKILL)])
 def test_a_stopped_run_resumes_to_the_same_figures(reference, tmp_path, label, sig):
     root, ref = reference
     store = tmp_path / "store"
@@ -65,5 +90,7 @@ def test_a_stopped_run_resumes_to_the_same_figures(reference, tmp_path, label, s
     assert main(["run", str(root / "camp"), *SETTINGS, "--out", str(tmp_path / "again"), "--cache-dir", str(store),
                  "--quiet"]) == 0
     again = json.loads((tmp_path / "again" / "summary.json").read_text())
-    for key in ("cases", "joints", "geometric", "bias", "step1", "d1b"):
-        assert again[key] == ref[key], key
+    for key in ("cases", "joints", "geometric", "bias", "step1", "d1b", "warnings"):
+        # equal to 1e-6 relative: BLAS in a process that ran other work first may sum in another order (seen:
+        # 2e-9 relative on a refinement's figure); the report prints at most 4 significant digits
+        assert _close(again[key], ref[key]), (key, _first_difference(again[key], ref[key]))

@@ -105,6 +105,31 @@ def test_a_damaged_entry_is_recomputed_with_a_warning(tmp_path):
     assert r.computed == ["d"] and any(str(entry) in w for w in r.warnings)
 
 
+def halve_with_warning(x):
+    import warnings
+
+    warnings.warn("halved:\n  on purpose", UserWarning, stacklevel=1)
+    return 0.5 * np.asarray(x)
+
+
+@pytest.mark.parametrize("workers", [1, 2])
+def test_a_stages_warnings_are_kept_with_its_entry_and_reported_when_reused(tmp_path, capfd, workers):
+    """A warning raised while a stage computes (here or on a worker) is printed once as one line, and comes back
+    from the store with the entry: a rerun that reuses the stage reports the same warnings."""
+    def pipe():
+        return Pipeline([Node("s", add, {"a": "a", "b": "b"}, where="parent"),
+                         Node("h", halve_with_warning, {"x": "s"}), Node("d", double, {"x": "h"})])
+    store = Store(tmp_path)
+    first = Runner(store, workers)
+    first.run(pipe(), ["d"], _sources())
+    err = capfd.readouterr().err
+    assert err.count("bladetwin: warning: halved: on purpose\n") == 1 and "UserWarning" not in err
+    again = Runner(store, workers)
+    again.run(pipe(), ["d"], _sources())
+    assert again.computed == [] and again.warnings_of() == first.warnings_of() == ["halved: on purpose"]
+    assert "halved: on purpose" in capfd.readouterr().err
+
+
 def test_a_pipeline_is_data_that_can_be_listed_and_cut():
     p = _pipeline()
     assert p.names() == ["s", "d", "t"]

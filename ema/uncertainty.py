@@ -1,0 +1,125 @@
+"""Standard deviations of identified poles: the linearised covariance of the least-squares fit (issue 31).
+
+The poles are the minimiser of the variable-projection misfit of :func:`ema.lsfd.refine_poles`: residues and
+residual terms eliminated, natural frequencies and damping ratios free. Near that minimum the parameters' covariance is
+the sandwich ``(JᵀJ)⁻¹ (Σ_l J_lᵀ r_l r_lᵀ J_l) (JᵀJ)⁻¹`` (J: the residual's Jacobian in the frequencies (Hz)
+and damping ratios; r: the residual; l: the spectral lines, each a cluster of its real and imaginary parts in
+every FRF; White's heteroscedasticity-consistent estimator with a degrees-of-freedom factor). It needs no
+noise model: a test's noise is larger at the resonances (a share of |H|) than between them, where the plain
+``σ² (JᵀJ)⁻¹`` with one σ² for all lines would understate the poles' scatter. Each mode is taken on
+its local window (:func:`ema.lsfd.local_windows`) with the poles that share it, as the refinement does: a
+dense family's neighbours enter the covariance, the far modes only through the residual terms.
+
+What it does not hold: bias, e.g. from a missed neighbour or a residual term that does not absorb the rest of
+the band. :func:`order_spread` measures part of that, the scatter of the mode's poles over the model orders
+of its stabilization diagram; :func:`ema.fit` adds the two in quadrature. The calibration against a known
+truth is measured in docs/ema.md ("Uncertainty").
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .frf import FRFSet
+from .lsfd import _VarPro, local_windows
+
+__all__ = ["pole_std", "order_spread"]
+
+
+def pole_std(frf: FRFSet, poles: np.ndarray, band: tuple[float, float], residuals: bool = True,
+             max_size: float = 4e7) -> tuple[np.ndarray, np.ndarray]:
+    """Standard deviation of each pole's natural frequency and damping ratio.
+
+    Parameters
+    ----------
+    frf : FRFSet
+        The FRFs the poles were fitted to.
+    poles : ndarray of complex, shape (n_modes,)
+        Continuous-time poles (rad/s), e.g. ``ModalModel.poles``.
+    band : (f_lo, f_hi) in Hz
+        The fitted band (the local windows are clipped to it).
+    residuals : bool
+        Residual terms in each window's model, as in the fit.
+    max_size : float
+        Leave a mode's standard deviations NaN when its window's Jacobian would exceed this many entries (as
+        :func:`ema.lsfd.refine_poles` skips such a refinement): a very wide window, e.g. of a heavily damped
+        spurious pole, holds the whole band's modes.
+
+    Returns
+    -------
+    frequency_std_hz, damping_std : ndarray of float64, shape (n_modes,)
+        NaN for a mode whose window has too few lines for its poles, or whose Jacobian is singular.
+    """
+    poles = np.asarray(poles, dtype=np.complex128).reshape(-1)
+    f_std = np.full(poles.size, np.nan)
+    z_std = np.full(poles.size, np.nan)
+    for r, item in enumerate(local_windows(poles, frf, band)):
+        if item is None:
+            continue
+        window, near = item
+        i = int(np.searchsorted(near, r))
+        cov = _covariance(frf, poles[near], window, residuals, max_size)
+        if cov is not None:
+            n = near.size
+            f_std[r], z_std[r] = np.sqrt(cov[i, i]), np.sqrt(cov[n + i, n + i])
+    return f_std, z_std
+
+
+def _covariance(frf: FRFSet, lam: np.ndarray, window: tuple[float, float], residuals: bool,
+                max_size: float) -> np.ndarray | None:
+    """Covariance of (f_1..f_n [Hz], ζ_1..ζ_n) on one window (the sandwich of the module notes), or None."""
+    vp = _VarPro.of(frf, window, residuals, lam.size)
+    if vp.Yr.size * 2 * lam.size > max_size:
+        return None
+    res, c, Qa = vp.evaluate(lam)
+    J = vp.jacobian(lam, c, Qa)
+    n_f, k = vp.f.size, res.shape[1]
+    dof = res.size - J.shape[1] - Qa.shape[1] * k
+    if dof <= 0:
+        return None
+    # column scaling keeps the normal matrix well conditioned (frequencies in Hz, damping ratios ~1e-3)
+    scale = np.linalg.norm(J, axis=0)
+    if not np.all(scale > 0):
+        return None
+    Js = J / scale
+    try:
+        bread = np.linalg.inv(Js.T @ Js)
+    except np.linalg.LinAlgError:
+        return None
+    # one cluster per spectral line: its real and imaginary rows, every compressed column
+    g = (Js * res.ravel()[:, None]).reshape(2, n_f, k, -1).sum(axis=(0, 2))
+    meat = g.T @ g * (res.size / dof)
+    cov = bread @ meat @ bread / np.outer(scale, scale)
+    d = np.diag(cov)
+    return cov if np.all(np.isfinite(d)) and np.all(d >= 0) else None
+
+
+def order_spread(frequencies_hz: np.ndarray, damping_ratio: np.ndarray, diagram) -> np.ndarray:
+    """Scatter (Hz) of each mode's poles over the upper half of the model orders that hold it.
+
+    Parameters
+    ----------
+    frequencies_hz, damping_ratio : ndarray, shape (n_modes,)
+        The selected modes.
+    diagram : ema.stabilization.StabilizationDiagram
+        The poles of every model order.
+
+    Returns
+    -------
+    ndarray of float64, shape (n_modes,)
+        The standard deviation of the frequencies of the diagram's poles within the mode's half-power
+        half-bandwidth (ζ f) and nearer to it than half the distance to its nearest selected neighbour, over
+        the upper half of their orders; 0 where fewer than 3 poles qualify.
+    """
+    f = np.asarray(frequencies_hz, dtype=np.float64)
+    out = np.zeros(f.size)
+    for i, fi in enumerate(f):
+        others = np.delete(f, i)
+        tol = min(float(damping_ratio[i]) * fi, np.min(np.abs(others - fi)) / 2 if others.size else np.inf)
+        near = np.abs(diagram.frequencies_hz - fi) < tol
+        if np.count_nonzero(near) < 3:
+            continue
+        top = near & (diagram.order >= np.median(diagram.order[near]))
+        if np.count_nonzero(top) >= 3:
+            out[i] = float(np.std(diagram.frequencies_hz[top]))
+    return out
