@@ -65,10 +65,14 @@ def emit(text: str) -> None:
     print(PREFIX + one_line(text), file=sys.stderr, flush=True)
 
 
-def _show(message, category, filename, lineno, file=None, line=None) -> None:  # noqa: ARG001 - showwarning's API
-    emit(str(message))
+def _format(message, category, filename, lineno, line=None) -> str:  # noqa: ARG001 - formatwarning's API
+    return PREFIX + one_line(message) + "\n"
 
 
 def install() -> None:
-    """Print every warning not recorded elsewhere as one line (:func:`emit`), for the command line's lifetime."""
-    warnings.showwarning = _show
+    """Print every warning not recorded elsewhere as one line (as :func:`emit`), for the command line's lifetime.
+
+    It replaces the formatting, not ``showwarning``: a caller recording warnings (``catch_warnings(record=True)``,
+    ``pytest.warns``) still gets them.
+    """
+    warnings.formatwarning = _format

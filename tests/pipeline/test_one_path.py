@@ -182,5 +182,5 @@ def test_a_damaged_store_entry_is_recomputed_and_named_in_the_summary(camp, tmp_
     assert "Traceback" not in err and named
     s = json.loads((tmp_path / "o" / "summary.json").read_text())
     ref = json.loads((tmp_path / "ref" / "summary.json").read_text())
-    assert all(any(str(e) in n and "recomputed" in n for n in s["notes"]) for e in named)
+    assert all(any(str(e) in n and "recomputed" in n for n in s["warnings"]) for e in named)
     assert s["cases"] == ref["cases"] and s["joints"] == ref["joints"]
