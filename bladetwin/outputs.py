@@ -99,7 +99,7 @@ def _ema_tables(res: RunResult, out: Path, notes: list[str]) -> list[dict]:
     # points are numbered per joint, so the tests share only the disk points and cannot be paired by MAC).
     mh = res.features.measured_hz
     _csv(out / "d1b_frequencies.csv", ["joint"] + [f"mode {m + 1} (Hz)" for m in range(mh.shape[1])],
-         [[int(j), *("" if not np.isfinite(v) else float(v) for v in mh[k])] for k, j in enumerate(res.joints)])
+         [[int(j), *map(_blank, mh[k])] for k, j in enumerate(res.joints)])
     tables.append({"file": "d1b_frequencies.csv", "caption": "Disk–one-blade natural frequencies (Hz) per joint "
                    "(paper Table 3): each joint's EMA modes matched to the tracked ROM modes within "
                    f"{100 * MATCH_WINDOW:.0f} % (empty: not found)."})

@@ -112,8 +112,9 @@ def _work(func: Callable, args: dict, params: dict, path: str) -> tuple[float, l
     with threadpool_limits(1 if _SINGLE_THREAD else None), recording() as texts:
         value = func(**kwargs, **params)
     seconds = time.perf_counter() - t
-    save(path, value, unique(texts))
-    return seconds, unique(texts)
+    found = unique(texts)
+    save(path, value, found)
+    return seconds, found
 
 
 class Results(Mapping):
