@@ -16,7 +16,8 @@ _DEFAULTS = RunOptions()
 
 
 def add_stage_options(p) -> None:
-    """Add ``--cache-dir --n --scale --seed --step --features --no-bias --refine --workers --dask-workers``."""
+    """Add ``--cache-dir --n --scale --seed --step --features --no-bias --refine --method --components --workers
+    --dask-workers``."""
     d = _DEFAULTS
     p.add_argument("--allow-outside", action="store_true",
                    help="let the manifest name files outside the campaign folder (refused by default)")
@@ -36,6 +37,13 @@ def add_stage_options(p) -> None:
                         "0: the k-NN's pattern, as the paper)")
     p.add_argument("--workers", type=int, default=d.workers, help="worker processes of the stage runner, each "
                    "single-threaded (default: %(default)s)")
+    p.add_argument("--method", choices=("knn", "posterior", "both"), default=d.method,
+                   help="how unfilmed joints are identified: the k-NN (and its refinement), the contact posterior "
+                        "(beyond the paper: intervals and probability maps), or both side by side; the identified "
+                        "ROM uses the posterior's answer when it ran (default: %(default)s)")
+    p.add_argument("--components", type=int, default=None, metavar="K",
+                   help="PCA components per flank of the contact posterior's prior (default: enough for 95 %% of "
+                        "the films' variance; at most one fewer than the filmed joints)")
     p.add_argument("--dask-workers", type=int, default=None, metavar="N",
                    help="build the dataset on a local Dask cluster of N worker processes (default: in a worker)")
 
@@ -50,10 +58,13 @@ def stage_options(args, *, scheduler: str | None = None) -> RunOptions:
             ("--refine", args.refine, args.refine >= 0, "an integer ≥ 0"),
             ("--seed", args.seed, args.seed >= 0, "a non-negative integer"),
             ("--dask-workers", args.dask_workers, args.dask_workers is None or args.dask_workers >= 1,
+             "a positive integer"),
+            ("--components", args.components, args.components is None or args.components >= 1,
              "a positive integer")):
         if not ok:
             raise ValueError(f"{name} {v}: expected {expected}")
     return RunOptions(cache_dir=Path(args.cache_dir) if args.cache_dir else None, n_patterns=args.n,
                       scale=args.scale, seed=args.seed, step_pct=args.step, n_features=args.features,
                       bias=not args.no_bias, workers=args.workers, dask_workers=args.dask_workers,
-                      scheduler=scheduler, refine=args.refine)
+                      scheduler=scheduler, refine=args.refine,
+                      method=args.method, n_components=args.components)

@@ -30,7 +30,8 @@ from identify.plots import (
 from identify.validation import contact_area_fraction, geometric_validation
 from rom.pattern_io import save_patterns
 
-from .run_figures import plot_bias, plot_blade_deltas, plot_d1b_features, plot_joint_patterns
+from .methods import POSTERIOR_HEADER, methods_summary, posterior_rows
+from .run_figures import plot_bias, plot_blade_deltas, plot_contact_probability, plot_d1b_features, plot_joint_patterns
 from .stages import PAPER_TABLE8, RunResult
 from .stages.bias import MATCH_WINDOW
 from .user_warnings import emit, recording, unique
@@ -38,12 +39,15 @@ from .util import atomic_savefig, atomic_write_text
 
 __all__ = ["write_outputs", "write_sensitivity", "summary_of"]
 
-CASE_TITLES = {"A": "Case A: ROM with patterns identified from the numerical input vs ROM with the reference patterns",
-               "B": "Case B: ROM with the identified patterns (experimental input, bias removed) vs measured",
+CASE_TITLES = {"A": "Case A (k-NN): ROM with patterns identified from the numerical input vs ROM with the reference "
+                    "patterns",
+               "B": "Case B (k-NN): ROM with the identified patterns (experimental input, bias removed) vs measured",
                "B_no_bias": "Case B without the bias correction vs measured",
                "C": "Case C: ROM with the reference patterns vs measured",
                "baseline_A": "Baseline vs the ROM with the reference patterns",
-               "baseline_B": "Baseline vs measured"}
+               "baseline_B": "Baseline vs measured",
+               "posterior_A": "Case A with the contact posterior's answers (numerical input)",
+               "posterior_B": "Case B with the contact posterior's answers (experimental input, bias removed)"}
 
 
 def _csv(path: Path, header: list[str], rows: list[list]) -> str:
@@ -186,10 +190,13 @@ def _joint_row(res: RunResult, j: int) -> tuple[dict, list]:
     p, known, ref = res.final_patterns[j - 1], res.known, res.reference
     aL, aR = (float(a) for a in contact_area_fraction(np.stack([p.L, p.R])))
     lab = res.predictions.labels["experimental"].get(j)
+    post = j in res.posterior.get("experimental", {})
     src = "film" if j in known else (("k-NN + refinement" if res.options.refine else "k-NN") if lab else "baseline")
     tag = " (refined)" if res.options.refine else ""  # a refined pattern starts from this pair and leaves it
     pl = "film" if j in known else (_label(lab[0]) + tag if lab else "mean known")
     pr = "film" if j in known else (_label(lab[1]) + tag if lab else "mean known")
+    if post and j not in known:  # the posterior answered: its majority pattern, not a synthetic pair
+        src, pl, pr = "posterior", "posterior", "posterior"
     rL = rR = None
     if ref is not None:
         rL, rR = (float(a) for a in contact_area_fraction(np.stack([ref[j - 1].L, ref[j - 1].R])))
@@ -315,16 +322,61 @@ def _d1b_section(res: RunResult, out: Path) -> tuple[dict, dict]:
 
 def _table8_rows(cases: dict) -> list[list]:
     rows = []
-    for key, label in (("A", "Case A"), ("B", "Case B"), ("B_no_bias", "Case B, no bias correction"), ("C", "Case C")):
+    for key, label in (("A", "Case A (k-NN)"), ("B", "Case B (k-NN)"), ("B_no_bias", "Case B (k-NN), no bias "
+                                                                                   "correction"), ("C", "Case C")):
         v, p = cases[key], PAPER_TABLE8.get(key, {})
         rows.append([label, *(("unavailable",) * 3 if v is None else (v["mean_abs_df_pct"], v["mean_mac"],
                                                                        v["n_modes"])),
                      p.get("mean_abs_df_pct", ""), p.get("mean_mac", "")])
     for key in ("A", "B"):
+        v = (cases.get("posterior") or {}).get(key)
+        if "posterior" in cases:
+            rows.append([f"Case {key} (posterior)", *(("unavailable",) * 3 if v is None else (
+                v["mean_abs_df_pct"], v["mean_mac"], v["n_modes"])), "", ""])
+    for key in ("A", "B"):
         v = cases["baseline"][key]
         rows.append([f"baseline (as Case {key})", *(("unavailable",) * 3 if v is None
                                                      else (v["mean_abs_df_pct"], v["mean_mac"], v["n_modes"])), "", ""])
     return rows
+
+
+def _posterior_section(res: RunResult, out: Path) -> list[dict]:
+    """The contact posterior's answer per unfilmed joint: probability maps, intervals (empty if it did not run)."""
+    posts = res.posterior.get("experimental", {})
+    if not posts:
+        return []
+    joints = sorted(posts)
+    labels = [f"joint {j}" for j in joints]
+    columns = {}
+    if "knn" in res.answers:
+        columns["k-NN"] = [res.answers["knn"]["experimental"][j - 1] for j in joints]
+    if res.reference is not None:
+        columns["reference"] = [res.reference[j - 1] for j in joints]
+    fig = _fig(plot_contact_probability([posts[j].probability for j in joints], labels, columns),
+               out / "contact_probability.png")
+    _csv(out / "posterior_contact.csv", POSTERIOR_HEADER, [[_blank(v) for v in r] for r in posterior_rows(res)])
+    s = res.posterior["surrogate"]
+    m = methods_summary(res).get("posterior", {})
+    text = ["Each unfilmed joint's contact as a posterior over a continuous pattern family (the films' PCA and the "
+            "contact level, Eq. 30's prior), given every tracked mode of its disk-one-blade test; the noise is the "
+            "ROM's scatter on the filmed joints, the EMA's standard deviation and the surrogate's error. The answer "
+            "is each node's majority (probability > ½); the intervals are 90 % posterior intervals. Beyond the paper "
+            "(docs/identify.md).",
+            f"Surrogate of the d1b ROM: held-out RMS error {', '.join(f'{e:.3f}' for e in s.error_pct)} % per mode "
+            f"({s.n_test} of {s.n_train + s.n_test} direct solves held out)."]
+    exp = m.get("experimental")
+    if exp:
+        text.append(f"Against the reference patterns (experimental input): mean |area error| {exp['area_error_pp']:.1f}"
+                    f" pp, centroid distance {exp['centroid_distance_mm']:.2f} mm, node agreement "
+                    f"{100 * exp['node_agreement']:.1f} %; the true area lies in the 90 % interval on "
+                    f"{100 * exp.get('ci90_coverage_area', float('nan')):.0f} % of flanks (median width "
+                    f"{exp.get('ci90_median_width_pp', float('nan')):.1f} pp).")
+    return [{"id": "posterior", "title": "Contact posterior: every unfilmed joint with its confidence",
+             "text": text,
+             "figures": [{"file": fig, "caption": "Posterior probability of contact at each node (left pair), beside "
+                          "the k-NN's answer and the reference pattern where they exist."}],
+             "tables": [{"file": "posterior_contact.csv", "caption": "The posterior's answer per unfilmed joint: "
+                         "area fractions and centroids with their 90 % intervals (experimental input)."}]}]
 
 
 def _full_section(res: RunResult, out: Path) -> dict:
@@ -339,14 +391,17 @@ def _full_section(res: RunResult, out: Path) -> dict:
     tables = [{"file": _csv(out / "table8.csv", ["case", "mean |Δf| (%)", "mean MAC", "modes", "paper |Δf| (%)",
                                                  "paper MAC"], _table8_rows(res.cases)),
                "caption": "Paper Table 8 with the baseline rows: the mean known pattern at every unfilmed joint."}]
-    ema.write_modes(out / "identified_rom_modes.uff", rom_modal_model(res.full["identified"]),
-                    id1=f"bladetwin identified ROM, campaign {res.campaign.name}")
+    exported = "posterior" if "posterior" in res.full else "identified"
+    ema.write_modes(out / "identified_rom_modes.uff", rom_modal_model(res.full[exported]),
+                    id1=f"bladetwin identified ROM ({'posterior' if exported == 'posterior' else 'k-NN'}), campaign "
+                        f"{res.campaign.name}")
     return {"id": "full", "title": "Full bladed disk: Cases A, B, C (Table 8)",
             "text": ["Case A: ROM with patterns identified from the numerical input against the ROM with the "
                      "reference patterns. Case B: ROM with the patterns identified from the measurements against the "
                      "measured modes. Case C: ROM with the reference patterns against the measured modes (the model "
                      "error). The baseline gives every unfilmed joint the majority pattern of the films. The "
-                     "identified ROM's modes are in identified_rom_modes.uff (UFF 55, rig DOF labels)."],
+                     "identified ROM's modes are in identified_rom_modes.uff (UFF 55, rig DOF labels); it is the ROM "
+                     f"with {'the contact posterior' if exported == 'posterior' else 'the k-NN'}'s answers."],
             "figures": figs, "tables": tables}
 
 
@@ -359,14 +414,14 @@ def write_outputs(res: RunResult, out: Path, *, command: str = "bladetwin run") 
         sections = [_ema_section(res, out, notes), _patterns_section(res, out)]
         ident, joints, geo = _identification_section(res, out)
         d1b, d1b_summary = _d1b_section(res, out)
-        sections += [ident, d1b, _full_section(res, out)]
+        sections += [ident, *_posterior_section(res, out), d1b, _full_section(res, out)]
     for text in unique(texts):
         emit(text)
     summary = summary_of(res, command)
     summary["notes"] = summary["notes"] + notes
     summary["warnings"] = unique(summary["warnings"] + texts)
     summary.update(_clean({"joints": joints, "sections": sections, "geometric": geo, "d1b": d1b_summary,
-                           "ema": ema_modes(res)}))
+                           "ema": ema_modes(res), "methods": methods_summary(res)}))
     summary["files"] = {"patterns": "identified_patterns.npz", "rom_modes_uff": "identified_rom_modes.uff"}
     atomic_write_text(out / "summary.json", json.dumps(summary, indent=2, allow_nan=False, default=_nan) + "\n")
     return summary
@@ -405,7 +460,8 @@ def summary_of(res: RunResult, command: str) -> dict:
         "cases": res.cases, "paper_table8": PAPER_TABLE8, "notes": list(res.notes), "warnings": list(res.warnings),
         "settings": {"n_patterns": res.options.n_patterns, "scale": res.options.scale, "seed": res.options.seed,
                      "step_pct": res.options.step_pct, "n_features": res.options.n_features,
-                     "refine_max_solves": res.options.refine},
+                     "refine_max_solves": res.options.refine, "method": res.options.method,
+                     "n_components": res.options.n_components},
         "timings_s": {k: round(v, 2) for k, v in res.timings_s.items()},
         "stages": dict(res.stage_counts),
     })

@@ -8,7 +8,7 @@ import numpy as np
 from matplotlib.colors import TwoSlopeNorm
 from matplotlib.figure import Figure
 
-__all__ = ["plot_blade_deltas", "plot_joint_patterns", "plot_d1b_features", "plot_bias"]
+__all__ = ["plot_blade_deltas", "plot_joint_patterns", "plot_contact_probability", "plot_d1b_features", "plot_bias"]
 
 
 def plot_blade_deltas(deltas_pct: np.ndarray) -> Figure:
@@ -61,6 +61,44 @@ def plot_joint_patterns(patterns: Sequence, labels: Sequence[str], reference: Se
             if r == 0:
                 ax.set_title(heads[c], fontsize=9)
         axes[r, 0].set_ylabel(labels[r], rotation=0, ha="right", va="center", fontsize=8)
+    return fig
+
+
+def plot_contact_probability(probability: Sequence, labels: Sequence[str], columns: dict[str, Sequence]) -> Figure:
+    """Each unfilmed joint's posterior contact probability per flank, beside other answers (k-NN, reference).
+
+    Parameters
+    ----------
+    probability : sequence of ndarray, shape (2, rows, cols) each
+        P(contact) per node, flanks L and R (:attr:`identify.JointPosterior.probability`).
+    labels : sequence of str
+        Row titles, e.g. "joint 4 · L 45–71 %".
+    columns : dict name → sequence of rom.ContactPattern
+        Patterns drawn beside (both flanks each), e.g. ``{"k-NN": ..., "reference": ...}``.
+    """
+    n = len(probability)
+    cols = 2 + 2 * len(columns)
+    shape = np.asarray(probability[0][0]).shape
+    fig = Figure(figsize=(min(1.6 + cols * max(1.4, 0.08 * shape[1]), 15), 0.6 + 0.7 * n), layout="constrained")
+    axes = fig.subplots(n, cols, squeeze=False)
+    heads = ["P(contact) L", "P(contact) R"] + [f"{name} {f}" for name in columns for f in "LR"]
+    im = None
+    for r in range(n):
+        grids = [probability[r][0], probability[r][1]]
+        for pats in columns.values():
+            grids += [pats[r].L, pats[r].R]
+        for c, g in enumerate(grids):
+            ax = axes[r, c]
+            img = ax.imshow(np.asarray(g, float), cmap="Greys" if c > 1 else "viridis", vmin=0, vmax=1,
+                            aspect="auto", interpolation="nearest")
+            im = img if c < 2 else im
+            ax.set_xticks([])
+            ax.set_yticks([])
+            if r == 0:
+                ax.set_title(heads[c], fontsize=9)
+        axes[r, 0].set_ylabel(labels[r], rotation=0, ha="right", va="center", fontsize=8)
+    if im is not None:
+        fig.colorbar(im, ax=axes[:, :2], shrink=0.6, label="posterior probability of contact")
     return fig
 
 

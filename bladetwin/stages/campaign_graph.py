@@ -13,11 +13,11 @@ from pathlib import Path
 
 from rom.cache import hash_inputs
 
-from . import bias, dataset, full, knn, measured, models, patterns, refinement, validation
+from . import bias, dataset, full, knn, measured, models, patterns, posterior, refinement, validation
 from .graph import Node, Pipeline
 from .runner import Source
 
-__all__ = ["RunOptions", "test_name", "reference_patterns", "campaign_pipeline", "campaign_sources",
+__all__ = ["METHODS", "RunOptions", "test_name", "reference_patterns", "campaign_pipeline", "campaign_sources",
            "identify_inputs"]
 
 
@@ -45,6 +45,12 @@ class RunOptions:
     refine : int
         After the k-NN, refine every unfilmed joint's pattern by a compass search of at most this many d1b
         solves (:func:`identify.refine.refine_pattern`, beyond the paper); 0: the k-NN's pair, as the paper.
+    method : {"knn", "posterior", "both"}
+        Identify unfilmed joints by the k-NN (and its refinement), by the contact posterior
+        (:mod:`identify.posterior`, beyond the paper), or both. With ``"posterior"`` the k-NN still runs (the
+        posterior shares its features, and it takes a second) but is not refined or reported.
+    n_components : int or None
+        PCA components per flank of the posterior's prior; default: enough for 95 % of the films' variance.
     """
 
     cache_dir: Path | None = None
@@ -59,7 +65,26 @@ class RunOptions:
     dask_workers: int | None = None
     scheduler: str | None = None
     refine: int = 40
+    method: str = "both"
+    n_components: int | None = None
 
+    def __post_init__(self) -> None:
+        if self.method not in METHODS:
+            raise ValueError(f"method {self.method!r}: expected one of {', '.join(METHODS)}")
+
+    @property
+    def knn_reported(self) -> bool:
+        """Whether the k-NN's answer is one of the run's methods."""
+        return self.method in ("knn", "both")
+
+    @property
+    def posterior(self) -> bool:
+        """Whether the contact posterior runs."""
+        return self.method in ("posterior", "both")
+
+
+#: The identification methods of ``bladetwin run --method`` (``both`` runs the first two side by side).
+METHODS = ("knn", "posterior", "both")
 
 #: Which EMA first, among the nodes ready with it: the longest chain of the run starts at the CB disk and the blade
 #: and d1b tests (dataset → k-NN → refinement); the disk and full-assembly tests are only needed by the full solves,
@@ -165,7 +190,7 @@ def _identify_nodes(p: Pipeline, campaign, opts: RunOptions) -> None:
     unfilmed = [t.index for t in campaign.of_type("d1b") if t.index not in campaign.known_joints]
     for k, name in enumerate(identify_inputs(campaign, opts)):
         refined = {}
-        for j in unfilmed if opts.refine else ():
+        for j in unfilmed if opts.refine and opts.knn_reported else ():
             refined[f"joint_{j:02d}"] = p.add(Node(
                 f"refine/{name}/joint_{j:02d}", refinement.refine_joint,
                 {**rom, "dataset": "dataset", "films": "films", "synthetic": "synthetic",
@@ -177,10 +202,39 @@ def _identify_nodes(p: Pipeline, campaign, opts: RunOptions) -> None:
                    {"input": name, "n_blades": campaign.n_blades}, where="parent", stored=False, content_key=True))
 
 
+def _posterior_nodes(p: Pipeline, campaign, opts: RunOptions) -> None:
+    rom = {"disk": "disk_cb", "blade": "blade_rubin", "dataset": "dataset"}
+    p.add(Node("posterior/prior", posterior.prior_node, {"films": "films"},
+               {"scale": opts.scale, "n_components": opts.n_components}, where="parent"))
+    n = posterior.N_SOLVES // posterior.N_PARTS
+    parts = {f"part_{k}": p.add(Node(f"posterior/solves/part_{k}", posterior.surrogate_solves,
+                                     {**rom, "prior": "posterior/prior"},
+                                     {"part": k, "n": n, "seed": opts.seed, "widen": posterior.WIDEN},
+                                     priority=80, label=f"surrogate solves {k + 1}/{posterior.N_PARTS}")).name
+             for k in range(posterior.N_PARTS)}
+    p.add(Node("posterior/surrogate", posterior.surrogate_node, parts, where="parent"))
+    unfilmed = [t.index for t in campaign.of_type("d1b") if t.index not in campaign.known_joints]
+    # the full solves take the experimental (bias removed) and numerical inputs' answers
+    for k, name in enumerate(n for n in identify_inputs(campaign, opts) if n != "experimental_no_bias"):
+        posts = {}
+        for j in unfilmed:
+            posts[f"joint_{j:02d}"] = p.add(Node(
+                f"posterior/{name}/joint_{j:02d}", posterior.posterior_joint,
+                {**rom, "features": "features", "prior": "posterior/prior", "surrogate": "posterior/surrogate",
+                 "delta_all": "delta_all", "bd": "fe_model", "baseline": "baseline", "reference": "reference",
+                 "fit": f"ema/d1b_{j:02d}"},
+                {"input": name, "joint": int(j), "seed": opts.seed}, priority=38 - 10 * k,
+                label=f"joint {j} posterior ({name} input)")).name
+        p.add(Node(f"patterns/posterior_{name}", posterior.posterior_patterns,
+                   {"known": "known", "baseline": "baseline", **posts}, {"n_blades": campaign.n_blades},
+                   where="parent", stored=False, content_key=True))
+
+
 #: The full solves: name → the patterns they take, and their priority.
 FULL = {"baseline": ("patterns/baseline", 45), "reference": ("reference", 45),
         "identified": ("patterns/experimental", 35), "identified_no_bias": ("patterns/experimental_no_bias", 25),
-        "numerical": ("patterns/numerical", 15)}
+        "numerical": ("patterns/numerical", 15), "posterior": ("patterns/posterior_experimental", 36),
+        "posterior_numerical": ("patterns/posterior_numerical", 16)}
 
 
 def _validation_nodes(p: Pipeline, campaign, opts: RunOptions) -> None:
@@ -189,7 +243,9 @@ def _validation_nodes(p: Pipeline, campaign, opts: RunOptions) -> None:
     p.add(Node("n_full_modes", full.n_full_modes, assembly, {"n_blades": campaign.n_blades}, where="parent",
                stored=False))
     names = [n for n in FULL if n == "baseline" or (n == "reference" and "numerical" in inputs)
-             or FULL[n][0].split("/")[-1] in inputs]
+             or (FULL[n][0].split("/")[-1] in inputs)
+             or (opts.posterior and n.startswith("posterior")
+                 and FULL[n][0].split("/")[-1].removeprefix("posterior_") in inputs)]
     for name in names:
         pats, prio = FULL[name]
         p.add(Node(f"full/{name}", full.solve_assembly, {"cyclic": "disk_cyclic", "bd": "fe_model",
@@ -213,5 +269,7 @@ def campaign_pipeline(campaign, opts: RunOptions) -> Pipeline:
     _model_nodes(p)
     _pattern_nodes(p, opts, campaign.n_blades)
     _identify_nodes(p, campaign, opts)
+    if opts.posterior:
+        _posterior_nodes(p, campaign, opts)
     _validation_nodes(p, campaign, opts)
     return p

@@ -62,6 +62,12 @@ class RunResult:
     #: What the user should know about the inputs and the run (one line each; :mod:`bladetwin.user_warnings`):
     #: a film read under a stated interpretation, a stage's numerical warning, a damaged store entry recomputed.
     warnings: list[str] = field(default_factory=list)
+    #: The contact posterior's results, when it ran (``--method posterior|both``): ``"prior"``, ``"surrogate"`` and
+    #: per input (``"experimental"``, ``"numerical"``) a dict joint → :class:`identify.JointPosterior`.
+    posterior: dict = field(default_factory=dict)
+    #: Each reported method's answers (``"knn"``, ``"posterior"``) per input (``"experimental"``, ``"numerical"``):
+    #: one pattern per joint 1..N, films at the filmed joints.
+    answers: dict = field(default_factory=dict)
 
     @property
     def joints(self) -> np.ndarray:
@@ -142,7 +148,7 @@ def _notes(res: dict, campaign, opts: RunOptions, fits: dict) -> list[str]:
     outside = _outside_note(res, opts)
     if outside:
         notes.append(outside)
-    if opts.refine:
+    if opts.refine and opts.knn_reported:
         notes.append(_refine_note(res, campaign, opts))
     notes.append(method_note({k.split("/", 1)[1]: v for k, v in res.items() if k.startswith("full/")}))
     return notes + list(res["validation"].notes)
@@ -152,8 +158,31 @@ def gather(res, campaign, opts: RunOptions, bd, timings: dict[str, float]) -> Ru
     """The :class:`RunResult` of one campaign from the runner's outputs (names of its pipeline)."""
     fits = {test_name(t): (t, res[f"ema/{test_name(t)}"]) for t in campaign.tests}
     fulls = {k.split("/", 1)[1]: res[k].modes for k in res if k.startswith("full/")}
+    post = _posterior(res) if opts.posterior else {}
+    # the run's answer is the posterior's where it ran (design §8.30), else the k-NN's
+    final = res["patterns/posterior_experimental"] if post else res["patterns/experimental"]
     return RunResult(campaign, opts, bd, fits, res["blade_table"], res["films"], res["known"], res["synthetic"],
                      res["sensitivity"], res["dataset"], res["delta_all"], res["features"], res["predictions"],
-                     res["patterns/experimental"], res["baseline"], res["reference"], res["d1b_rows"], fulls,
-                     res["validation"], _notes(res, campaign, opts, fits), timings)
+                     final, res["baseline"], res["reference"], res["d1b_rows"], fulls,
+                     res["validation"], _notes(res, campaign, opts, fits), timings, posterior=post,
+                     answers=_answers(res, opts))
+
+
+def _answers(res, opts: RunOptions) -> dict:
+    out = {}
+    for method, prefix, on in (("knn", "patterns/", opts.knn_reported), ("posterior", "patterns/posterior_",
+                                                                          opts.posterior)):
+        if on:
+            out[method] = {i: res[prefix + i] for i in ("experimental", "numerical") if prefix + i in res}
+    return out
+
+
+def _posterior(res) -> dict:
+    """The posterior's nodes gathered: prior, surrogate, and per input each joint's posterior."""
+    out: dict = {"prior": res["posterior/prior"], "surrogate": res["posterior/surrogate"]}
+    for k in res:
+        parts = k.split("/")
+        if len(parts) == 3 and parts[0] == "posterior" and parts[2].startswith("joint_") and res[k] is not None:
+            out.setdefault(parts[1], {})[int(parts[2].rsplit("_", 1)[1])] = res[k]
+    return out
 

@@ -111,11 +111,15 @@ def full_validation(assembly=None, *, bias: bool, **solves: FullSolve) -> FullVa
             comps["B_no_bias"] = vs_measured(measured, full["identified_no_bias"])
         if "reference" in full:
             comps["C"] = vs_measured(measured, full["reference"])
+        if "posterior" in full:
+            comps["posterior_B"] = vs_measured(measured, full["posterior"])
     else:
         notes.append("No full-assembly test: Cases B and C are unavailable.")
     if "reference" in full:
         ref = full["reference"] if f_max is None else _in_band(full["reference"], f_max)
-        for name, other in (("A", "numerical"), ("baseline_A", "baseline")):
+        for name, other in (("A", "numerical"), ("baseline_A", "baseline"), ("posterior_A", "posterior_numerical")):
+            if other not in full:
+                continue
             comps[name] = compare_modes((ref.frequencies_hz, ref.meas_shapes),
                                         (full[other].frequencies_hz, full[other].meas_shapes))
     else:
@@ -123,4 +127,6 @@ def full_validation(assembly=None, *, bias: bool, **solves: FullSolve) -> FullVa
                      "a film of every joint); this campaign has none, so they are unavailable.")
     cases = {k: case_figures(comps.get(k)) for k in ("A", "B", "B_no_bias", "C")}
     cases["baseline"] = {"A": case_figures(comps.get("baseline_A")), "B": case_figures(comps.get("baseline_B"))}
+    if "posterior" in full:
+        cases["posterior"] = {k: case_figures(comps.get(f"posterior_{k}")) for k in ("A", "B")}
     return FullValidation(comps, cases, notes)

@@ -1,0 +1,107 @@
+"""summary.json's ``methods`` block and the posterior's table: each identification method's figures side by side.
+
+Every figure is computed against the reference patterns (a virtual campaign's truth, or films of every joint),
+on the unfilmed joints with a disk–one-blade test; none is available without references.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from identify.validation import contact_area_fraction, contact_centroid, geometric_validation
+from rom.academic import flank_coordinates
+
+__all__ = ["methods_summary", "posterior_rows", "POSTERIOR_HEADER"]
+
+POSTERIOR_HEADER = ["joint", "area L (%)", "area L 5 %", "area L 95 %", "area R (%)", "area R 5 %", "area R 95 %",
+                    "reference area L (%)", "reference area R (%)", "centroid u L (mm)", "u L 5 %", "u L 95 %",
+                    "centroid v L (mm)", "v L 5 %", "v L 95 %", "centroid u R (mm)", "u R 5 %", "u R 95 %",
+                    "centroid v R (mm)", "v R 5 %", "v R 95 %"]
+
+
+def _unfilmed(res) -> list[int]:
+    tested = {int(j) for j in res.joints}
+    return [j for j in range(1, res.campaign.n_blades + 1) if j not in res.known and j in tested]
+
+
+def _geometry(patterns: list, reference: list, joints: list[int], bd) -> dict:
+    """Mean |area error| (pp), mean centroid distance (mm) and node agreement of ``patterns`` at ``joints``."""
+    geo = geometric_validation([patterns[j - 1] for j in joints], [reference[j - 1] for j in joints], bd)
+    agree = np.mean([np.mean(np.stack([patterns[j - 1].L, patterns[j - 1].R])
+                             == np.stack([reference[j - 1].L, reference[j - 1].R])) for j in joints])
+    return {"area_error_pp": float(np.mean(np.abs(geo.area_error_pct))),
+            "centroid_distance_mm": float(1e3 * np.nanmean(geo.centroid_distance)), "node_agreement": float(agree)}
+
+
+def _calibration(posts: dict, reference: list, joints: list[int]) -> dict:
+    """The posterior's 90 % area intervals and probability maps against the reference patterns."""
+    inside, width, brier = [], [], []
+    for j in joints:
+        if j not in posts:
+            continue
+        p, ref = posts[j], np.stack([reference[j - 1].L, reference[j - 1].R])
+        a = contact_area_fraction(ref)
+        lo, hi = p.area_pct_ci90[:, 0], p.area_pct_ci90[:, 1]
+        inside.extend(((lo <= a) & (a <= hi)).tolist())
+        width.extend((hi - lo).tolist())
+        brier.append(float(np.mean((p.probability - ref) ** 2)))
+    if not inside:
+        return {}
+    return {"ci90_coverage_area": float(np.mean(inside)), "ci90_median_width_pp": float(np.median(width)),
+            "brier": float(np.mean(brier))}
+
+
+def _cases(res, method: str) -> dict:
+    c = res.cases
+    if method == "knn":
+        return {k: c.get(k) for k in ("A", "B", "C")} | {"baseline": c.get("baseline")}
+    post = c.get("posterior") or {}
+    return {"A": post.get("A"), "B": post.get("B"), "C": c.get("C"), "baseline": c.get("baseline")}
+
+
+def methods_summary(res) -> dict:
+    """``methods``: per method that ran, its cases and, per input, its geometry against the references."""
+    joints = _unfilmed(res)
+    out = {}
+    for method, inputs in res.answers.items():
+        entry: dict = {"cases": _cases(res, method)}
+        for name, patterns in inputs.items():
+            if res.reference is None or not joints:
+                continue
+            fig = _geometry(patterns, res.reference, joints, res.bd)
+            if method == "posterior":
+                fig |= _calibration(res.posterior.get(name, {}), res.reference, joints)
+            entry[name] = fig
+        if method == "posterior":
+            s = res.posterior["surrogate"]
+            entry["surrogate"] = {"error_pct": s.error_pct.tolist(), "max_error_pct": s.max_error_pct.tolist(),
+                                  "n_train": s.n_train, "n_test": s.n_test}
+            prior = res.posterior["prior"]
+            entry["prior"] = {"n_components": list(prior.n_components), "level": prior.level.tolist(),
+                              "level_std": prior.level_std.tolist(), "scale": prior.scale}
+        out[method] = entry
+    return out
+
+
+def posterior_rows(res, input: str = "experimental") -> list[list]:
+    """One row per unfilmed joint: the answer's areas with 90 % intervals, the reference's, centroids (mm)."""
+    posts = res.posterior.get(input, {})
+    u, v = flank_coordinates(res.bd)
+    rows = []
+    for j in sorted(posts):
+        p = posts[j]
+        pat = res.answers["posterior"][input][j - 1]
+        grid = np.stack([pat.L, pat.R])
+        area = contact_area_fraction(grid)
+        cen = 1e3 * contact_centroid(grid, u, v)
+        ref = (contact_area_fraction(np.stack([res.reference[j - 1].L, res.reference[j - 1].R]))
+               if res.reference is not None else [None, None])
+        row = [j]
+        for s in (0, 1):
+            row += [float(area[s]), float(p.area_pct_ci90[s, 0]), float(p.area_pct_ci90[s, 1])]
+        row += [None if r is None else float(r) for r in ref]
+        for s in (0, 1):
+            for a in (0, 1):
+                row += [float(cen[s, a]), *(1e3 * p.centroid_ci90[s, a]).tolist()]
+        rows.append(row)
+    return rows

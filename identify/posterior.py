@@ -1,0 +1,181 @@
+"""Each unfilmed joint's contact as a posterior from its disk–one-blade test (beyond the paper).
+
+The seed paper's answer is one of n × n pre-drawn patterns with no measure of confidence. Here a joint's pattern
+is a point θ of the continuous prior of :mod:`identify.contact_prior` (PCA coefficients and contact level per
+flank), and the data are every tracked mode its d1b test found:
+
+    log p(θ | y) = −½ ‖θ‖² − ½ Σ_m [(log y_m − log(r_m · f_m(θ))) / σ_m]²   (+ const)
+
+with f the surrogate of :mod:`identify.contact_surrogate` (δ = 0), r_m the joint's δ factor, and σ_m the
+relative noise of mode m: the model error measured on the filmed joints, the EMA's standard deviation and the
+surrogate's held-out error, added in quadrature (:func:`noise_model`). Patterns that are empty, full or on a line
+have zero prior mass.
+
+The posterior is sampled by the affine-invariant ensemble sampler of ``emcee`` (Goodman & Weare 2010), seeded,
+on the hard-thresholded grids: the sampler needs no gradient, so the likelihood's steps at each node's
+threshold do not hurt it. What the user gets (:class:`JointPosterior`): the MAP pattern (the best sample), the
+probability that each node is in contact, and 90 % intervals of each flank's area fraction and centroid and of
+the predicted frequencies.
+"""
+
+from __future__ import annotations
+
+import numbers
+from dataclasses import dataclass
+
+import numpy as np
+
+from rom.contact import ContactPattern
+
+from .contact_prior import ContactPrior
+from .contact_surrogate import ContactSurrogate
+from .errors import IdentifyError
+from .validation import contact_area_fraction, contact_centroid
+
+__all__ = ["JointPosterior", "joint_posterior", "noise_model"]
+
+
+@dataclass(frozen=True, eq=False)
+class JointPosterior:
+    """One joint's posterior (module docstring).
+
+    Attributes
+    ----------
+    pattern : rom.ContactPattern
+        The MAP pattern (hard threshold).
+    theta_map : ndarray, shape (n_dim,)
+    probability : ndarray, shape (2, rows, cols)
+        Posterior probability that each node of each flank (L, R) is in contact.
+    area_pct_map : ndarray, shape (2,)
+        Area fraction of the MAP pattern per flank, % (Eq. 41).
+    area_pct_ci90 : ndarray, shape (2, 2)
+        5 % and 95 % posterior quantiles of each flank's area fraction, %.
+    centroid_map : ndarray, shape (2, 2)
+        (ū, v̄) of the MAP pattern per flank (Eq. 42), in the coordinates' unit (m).
+    centroid_ci90 : ndarray, shape (2, 2, 2)
+        Flank × (u, v) × (5 %, 95 %) quantiles of the centroid.
+    frequencies_hz : ndarray, shape (n_modes,)
+        Predicted tracked frequencies of the MAP pattern at the joint's δ (Hz).
+    frequencies_hz_ci90 : ndarray, shape (n_modes, 2)
+        Their 5 % and 95 % posterior quantiles.
+    n_samples : int
+        Posterior samples kept.
+    acceptance : float
+        Mean acceptance fraction of the ensemble's moves.
+    """
+
+    pattern: ContactPattern
+    theta_map: np.ndarray
+    probability: np.ndarray
+    area_pct_map: np.ndarray
+    area_pct_ci90: np.ndarray
+    centroid_map: np.ndarray
+    centroid_ci90: np.ndarray
+    frequencies_hz: np.ndarray
+    frequencies_hz_ci90: np.ndarray
+    n_samples: int
+    acceptance: float
+
+
+def noise_model(model_spread, surrogate_error_pct, ema_std_rel=None) -> np.ndarray:
+    """Relative noise per mode, shape (n_modes,): model error, surrogate error and EMA std in quadrature.
+
+    Parameters
+    ----------
+    model_spread : array_like, shape (n_modes,)
+        Scatter of f_measured / f_ROM − 1 over the filmed joints (relative; 0 for the numerical input).
+    surrogate_error_pct : array_like, shape (n_modes,)
+        :attr:`ContactSurrogate.error_pct`.
+    ema_std_rel : array_like, shape (n_modes,), optional
+        The EMA's frequency standard deviation over its frequency (NaN: unknown, taken as 0).
+    """
+    s = np.asarray(model_spread, np.float64) ** 2 + (np.asarray(surrogate_error_pct, np.float64) / 100) ** 2
+    if ema_std_rel is not None:
+        s = s + np.nan_to_num(np.asarray(ema_std_rel, np.float64)) ** 2
+    return np.sqrt(s)
+
+
+def _check(prior, surrogate, target_hz, sigma_rel, factor, n_walkers, n_steps) -> tuple:
+    if not isinstance(prior, ContactPrior) or not isinstance(surrogate, ContactSurrogate):
+        raise IdentifyError("joint_posterior needs an identify.ContactPrior and an identify.ContactSurrogate")
+    n_modes = surrogate.intercept.size
+    y = np.asarray(target_hz, np.float64).ravel()
+    s = np.asarray(sigma_rel, np.float64).ravel()
+    r = np.ones(n_modes) if factor is None else np.asarray(factor, np.float64).ravel()
+    if y.shape != (n_modes,) or s.shape != (n_modes,) or r.shape != (n_modes,):
+        raise IdentifyError(f"target_hz, sigma_rel and factor must each hold {n_modes} values (one per tracked mode)")
+    use = np.isfinite(y) & (y > 0)
+    if not use.any():
+        raise IdentifyError("target_hz holds no finite, positive frequency")
+    if np.any(~np.isfinite(s[use])) or np.any(s[use] <= 0):
+        raise IdentifyError(f"sigma_rel must be positive and finite where a target is given, got {s.tolist()}")
+    for name, v, lo in (("n_walkers", n_walkers, 2 * prior.n_dim), ("n_steps", n_steps, 10)):
+        if isinstance(v, bool) or not isinstance(v, numbers.Integral) or v < lo:
+            raise IdentifyError(f"{name} must be an integer ≥ {lo}, got {v!r}")
+    return y, s, r, use
+
+
+def joint_posterior(prior: ContactPrior, surrogate: ContactSurrogate, target_hz, sigma_rel, coordinates, *,
+                    factor=None, n_walkers: int = 32, n_steps: int = 1500, seed: int = 0) -> JointPosterior:
+    """Sample one joint's contact posterior (module docstring).
+
+    Parameters
+    ----------
+    prior : ContactPrior
+    surrogate : ContactSurrogate
+    target_hz : array_like, shape (n_modes,)
+        The joint's frequencies of the tracked modes (Hz; NaN where its test did not find the mode).
+    sigma_rel : array_like, shape (n_modes,)
+        Relative noise per mode (:func:`noise_model`).
+    coordinates : (u, v)
+        Node coordinates of a flank (m), arrays of shape (rows, cols).
+    factor : array_like, shape (n_modes,), optional
+        The joint's δ factor f(pattern, δ) / f(pattern, 0) (default 1).
+    n_walkers, n_steps : int
+        Ensemble size (≥ 2 n_dim) and steps; the first third of the steps are discarded as burn-in.
+    seed : int
+        Seeds the start positions and the sampler: the same inputs give the same answer.
+    """
+    import emcee
+
+    y, s, r, use = _check(prior, surrogate, target_hz, sigma_rel, factor, n_walkers, n_steps)
+    logy = np.log(np.where(use, y, 1.0))
+    logr = np.log(r)
+
+    def log_prob(theta: np.ndarray) -> np.ndarray:
+        g = prior.grids(theta)
+        ok = prior.valid(g)
+        out = np.full(len(theta), -np.inf)
+        if ok.any():
+            logf = np.log(surrogate.predict_hz(g[ok])) + logr
+            res = ((logy - logf) / s)[:, use]
+            out[ok] = -0.5 * np.sum(theta[ok] ** 2, axis=1) - 0.5 * np.sum(res ** 2, axis=1)
+        return out
+
+    rng = np.random.default_rng(seed)
+    start = prior.draw(n_walkers, rng)
+    sampler = emcee.EnsembleSampler(n_walkers, prior.n_dim, log_prob, vectorize=True)
+    sampler.random_state = np.random.RandomState(seed).get_state()  # emcee's own stream, seeded
+    sampler.run_mcmc(start, n_steps, progress=False)
+    burn = n_steps // 3
+    chain = sampler.get_chain(discard=burn, flat=True)
+    logp = sampler.get_log_prob(discard=burn, flat=True)
+    return _summarise(prior, surrogate, chain, logp, coordinates, logr, float(np.mean(sampler.acceptance_fraction)))
+
+
+def _summarise(prior, surrogate, chain, logp, coordinates, logr, acceptance) -> JointPosterior:
+    """Every figure of :class:`JointPosterior` from the kept samples."""
+    u, v = (np.asarray(a, np.float64) for a in coordinates)
+    best = int(np.argmax(logp))
+    grids = prior.grids(chain)
+    area = contact_area_fraction(grids)  # (n, 2)
+    with np.errstate(invalid="ignore"):
+        cen = contact_centroid(grids, u, v)  # (n, 2, 2)
+    freq = surrogate.predict_hz(grids) * np.exp(logr)
+    q = (5, 95)
+    return JointPosterior(
+        pattern=ContactPattern(grids[best, 0], grids[best, 1]), theta_map=chain[best].copy(),
+        probability=grids.mean(axis=0), area_pct_map=area[best], area_pct_ci90=np.percentile(area, q, axis=0).T,
+        centroid_map=cen[best], centroid_ci90=np.moveaxis(np.nanpercentile(cen, q, axis=0), 0, -1),
+        frequencies_hz=freq[best], frequencies_hz_ci90=np.percentile(freq, q, axis=0).T,
+        n_samples=len(chain), acceptance=acceptance)

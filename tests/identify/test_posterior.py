@@ -1,0 +1,116 @@
+"""The contact posterior (identify.contact_prior, contact_surrogate, posterior) against known generating models."""
+
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from identify import IdentifyError, PatternSampler
+from identify.contact_prior import contact_prior
+from identify.contact_surrogate import ContactSurrogate, fit_surrogate
+from identify.posterior import joint_posterior, noise_model
+from identify.validation import contact_area_fraction
+
+GRID = (5, 9)
+
+
+def _films(rng, n=5):
+    """Smooth random pressure maps on GRID, each read at its own level (as a lab's calibrated films)."""
+    r, c = np.meshgrid(np.linspace(-1, 1, GRID[0]), np.linspace(-1, 1, GRID[1]), indexing="ij")
+    maps, films = [], []
+    for _ in range(n):
+        a, b, w = rng.normal(0, 0.4, 3)
+        m = np.clip(0.5 + 0.25 * (np.cos(r + a) + np.cos(c * (1 + 0.3 * w) + b)) - 0.2, 0, 1)
+        level = 0.4 + rng.normal(0, 0.03)
+        maps.append(m)
+        films.append(SimpleNamespace(level=level, contact=m > level))
+    return np.array(maps), films
+
+
+def _prior(seed=0, **kw):
+    maps, films = _films(np.random.default_rng(seed))
+    s = PatternSampler(threshold=0.4).fit(maps)
+    return contact_prior(s, s, films, films, **kw)
+
+
+def _linear_model(prior, rng, n_modes=4):
+    """A surrogate that *is* the forward model: log f linear in the contact indicators."""
+    n = 2 * np.prod(GRID)
+    coef = rng.normal(0, 2e-3, (n, n_modes))
+    return ContactSurrogate(coef, np.log(np.linspace(100, 400, n_modes)), 1.0, np.zeros(n_modes),
+                            np.zeros(n_modes), 1, 1)
+
+
+def _uv():
+    return np.meshgrid(np.linspace(0, 8e-3, GRID[1]), np.linspace(0, 4e-3, GRID[0]))
+
+
+def test_prior_settings_are_checked():
+    with pytest.raises(IdentifyError, match="n_components must be a positive integer"):
+        _prior(n_components=0)
+    with pytest.raises(IdentifyError, match="at most 4"):
+        _prior(n_components=5)
+    with pytest.raises(IdentifyError, match="scale must be a positive number"):
+        _prior(scale=-1.0)
+    p = _prior(n_components=2)
+    assert p.n_components == (2, 2) and p.n_dim == 6
+
+
+def test_prior_level_spread_comes_from_the_films():
+    maps, films = _films(np.random.default_rng(3))
+    s = PatternSampler(threshold=0.4).fit(maps)
+    p = contact_prior(s, s, films, films)
+    levels = np.array([f.level for f in films])
+    assert p.level[0] == pytest.approx(levels.mean())
+    assert p.level_std[0] >= np.std(levels, ddof=1)  # the films' own scatter is part of it
+    assert contact_prior(s, s, films, films, scale=2.0).level_std[0] == pytest.approx(2 * p.level_std[0])
+
+
+def test_surrogate_recovers_a_log_linear_model_and_measures_its_error():
+    rng = np.random.default_rng(1)
+    prior = _prior()
+    truth = _linear_model(prior, rng)
+    grids = prior.grids(prior.draw(120, rng))
+    fitted = fit_surrogate(grids, truth.predict_hz(grids))
+    assert np.all(fitted.error_pct < 0.01)
+    # a model it cannot follow (a product of two nodes) shows in the held-out error
+    flat = grids.reshape(len(grids), 2, -1)
+    a, b = (int(np.argmin(np.abs(flat[:, s].mean(axis=0) - 0.5))) for s in (0, 1))  # nodes that vary most
+    bent = truth.predict_hz(grids) * (1 + 0.02 * (flat[:, 0, a] & flat[:, 1, b]))[:, None]
+    assert np.all(fit_surrogate(grids, bent).error_pct > 0.2)
+
+
+def test_posterior_intervals_cover_the_truth_and_are_narrower_than_the_prior():
+    rng = np.random.default_rng(7)
+    prior = _prior()
+    model = _linear_model(prior, rng, n_modes=6)
+    sigma = np.full(6, 2e-4)
+    inside, width = [], []
+    prior_area = contact_area_fraction(prior.grids(prior.draw(2000, rng)))
+    prior_width = np.diff(np.percentile(prior_area, (5, 95), axis=0), axis=0)[0]
+    for k in range(8):
+        theta = prior.draw(1, rng)
+        g = prior.grids(theta)
+        y = model.predict_hz(g)[0] * np.exp(rng.normal(0, sigma))
+        post = joint_posterior(prior, model, y, sigma, _uv(), n_walkers=24, n_steps=450, seed=k)
+        a = contact_area_fraction(g[0])
+        lo, hi = post.area_pct_ci90.T
+        inside += list((lo <= a) & (a <= hi))
+        width += list(hi - lo)
+    assert np.mean(inside) >= 0.75
+    assert np.median(width) < 0.8 * np.median(prior_width)
+
+
+def test_same_seed_same_answer_and_bad_targets_refused():
+    rng = np.random.default_rng(2)
+    prior = _prior()
+    model = _linear_model(prior, rng)
+    y = model.predict_hz(prior.grids(prior.draw(1, rng)))[0]
+    s = noise_model(np.full(4, 1e-3), np.zeros(4))
+    a = joint_posterior(prior, model, y, s, _uv(), n_walkers=16, n_steps=60, seed=3)
+    b = joint_posterior(prior, model, y, s, _uv(), n_walkers=16, n_steps=60, seed=3)
+    assert np.array_equal(a.probability, b.probability) and np.array_equal(a.theta_map, b.theta_map)
+    with pytest.raises(IdentifyError, match="no finite, positive frequency"):
+        joint_posterior(prior, model, np.full(4, np.nan), s, _uv())
+    with pytest.raises(IdentifyError, match="n_walkers"):
+        joint_posterior(prior, model, y, s, _uv(), n_walkers=3)
