@@ -65,7 +65,7 @@ class RunOptions:
     dask_workers: int | None = None
     scheduler: str | None = None
     refine: int = 40
-    method: str = "both"
+    method: str = "knn"
     n_components: int | None = None
 
     def __post_init__(self) -> None:
