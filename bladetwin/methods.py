@@ -84,7 +84,8 @@ def methods_summary(res) -> dict:
 
 
 def posterior_rows(res, input: str = "experimental") -> list[list]:
-    """One row per unfilmed joint: the answer's areas with 90 % intervals, the reference's, centroids (mm)."""
+    """One row per unfilmed joint: the answer's areas with 90 % intervals, the reference's (NaN without one),
+    centroids (mm)."""
     posts = res.posterior.get(input, {})
     u, v = flank_coordinates(res.bd)
     rows = []
@@ -95,11 +96,11 @@ def posterior_rows(res, input: str = "experimental") -> list[list]:
         area = contact_area_fraction(grid)
         cen = 1e3 * contact_centroid(grid, u, v)
         ref = (contact_area_fraction(np.stack([res.reference[j - 1].L, res.reference[j - 1].R]))
-               if res.reference is not None else [None, None])
+               if res.reference is not None else [np.nan, np.nan])
         row = [j]
         for s in (0, 1):
             row += [float(area[s]), float(p.area_pct_ci90[s, 0]), float(p.area_pct_ci90[s, 1])]
-        row += [None if r is None else float(r) for r in ref]
+        row += [float(r) for r in ref]
         for s in (0, 1):
             for a in (0, 1):
                 row += [float(cen[s, a]), *(1e3 * p.centroid_ci90[s, a]).tolist()]

@@ -328,11 +328,9 @@ def _table8_rows(cases: dict) -> list[list]:
         rows.append([label, *(("unavailable",) * 3 if v is None else (v["mean_abs_df_pct"], v["mean_mac"],
                                                                        v["n_modes"])),
                      p.get("mean_abs_df_pct", ""), p.get("mean_mac", "")])
-    for key in ("A", "B"):
-        v = (cases.get("posterior") or {}).get(key)
-        if "posterior" in cases:
-            rows.append([f"Case {key} (posterior)", *(("unavailable",) * 3 if v is None else (
-                v["mean_abs_df_pct"], v["mean_mac"], v["n_modes"])), "", ""])
+    for key, v in (cases.get("posterior") or {}).items():
+        rows.append([f"Case {key} (posterior)", *(("unavailable",) * 3 if v is None else (
+            v["mean_abs_df_pct"], v["mean_mac"], v["n_modes"])), "", ""])
     for key in ("A", "B"):
         v = cases["baseline"][key]
         rows.append([f"baseline (as Case {key})", *(("unavailable",) * 3 if v is None
@@ -340,7 +338,7 @@ def _table8_rows(cases: dict) -> list[list]:
     return rows
 
 
-def _posterior_section(res: RunResult, out: Path) -> list[dict]:
+def _posterior_section(res: RunResult, out: Path, methods: dict) -> list[dict]:
     """The contact posterior's answer per unfilmed joint: probability maps, intervals (empty if it did not run)."""
     posts = res.posterior.get("experimental", {})
     if not posts:
@@ -356,7 +354,7 @@ def _posterior_section(res: RunResult, out: Path) -> list[dict]:
                out / "contact_probability.png")
     _csv(out / "posterior_contact.csv", POSTERIOR_HEADER, [[_blank(v) for v in r] for r in posterior_rows(res)])
     s = res.posterior["surrogate"]
-    m = methods_summary(res).get("posterior", {})
+    m = methods.get("posterior", {})
     text = ["Each unfilmed joint's contact as a posterior over a continuous pattern family (the films' PCA and the "
             "contact level, Eq. 30's prior), given every tracked mode of its disk-one-blade test; the noise is the "
             "ROM's scatter on the filmed joints, the EMA's standard deviation and the surrogate's error. The answer "
@@ -414,14 +412,15 @@ def write_outputs(res: RunResult, out: Path, *, command: str = "bladetwin run") 
         sections = [_ema_section(res, out, notes), _patterns_section(res, out)]
         ident, joints, geo = _identification_section(res, out)
         d1b, d1b_summary = _d1b_section(res, out)
-        sections += [ident, *_posterior_section(res, out), d1b, _full_section(res, out)]
+        methods = methods_summary(res)
+        sections += [ident, *_posterior_section(res, out, methods), d1b, _full_section(res, out)]
     for text in unique(texts):
         emit(text)
     summary = summary_of(res, command)
     summary["notes"] = summary["notes"] + notes
     summary["warnings"] = unique(summary["warnings"] + texts)
     summary.update(_clean({"joints": joints, "sections": sections, "geometric": geo, "d1b": d1b_summary,
-                           "ema": ema_modes(res), "methods": methods_summary(res)}))
+                           "ema": ema_modes(res), "methods": methods}))
     summary["files"] = {"patterns": "identified_patterns.npz", "rom_modes_uff": "identified_rom_modes.uff"}
     atomic_write_text(out / "summary.json", json.dumps(summary, indent=2, allow_nan=False, default=_nan) + "\n")
     return summary

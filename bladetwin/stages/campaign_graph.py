@@ -214,6 +214,8 @@ def _posterior_nodes(p: Pipeline, campaign, opts: RunOptions) -> None:
              for k in range(posterior.N_PARTS)}
     p.add(Node("posterior/surrogate", posterior.surrogate_node, parts, where="parent"))
     unfilmed = [t.index for t in campaign.of_type("d1b") if t.index not in campaign.known_joints]
+    p.add(Node("posterior/factors", posterior.delta_factors, {**rom, "baseline": "baseline", "delta_all": "delta_all"},
+               {"joints": [int(j) for j in unfilmed]}, priority=80, label="δ factors of the posterior"))
     # the full solves take the experimental (bias removed) and numerical inputs' answers
     for k, name in enumerate(n for n in identify_inputs(campaign, opts) if n != "experimental_no_bias"):
         posts = {}
@@ -221,8 +223,8 @@ def _posterior_nodes(p: Pipeline, campaign, opts: RunOptions) -> None:
             posts[f"joint_{j:02d}"] = p.add(Node(
                 f"posterior/{name}/joint_{j:02d}", posterior.posterior_joint,
                 {**rom, "features": "features", "prior": "posterior/prior", "surrogate": "posterior/surrogate",
-                 "delta_all": "delta_all", "bd": "fe_model", "baseline": "baseline", "reference": "reference",
-                 "fit": f"ema/d1b_{j:02d}"},
+                 "delta_all": "delta_all", "factors": "posterior/factors", "bd": "fe_model",
+                 "reference": "reference", "fit": f"ema/d1b_{j:02d}"},
                 {"input": name, "joint": int(j), "seed": opts.seed}, priority=38 - 10 * k,
                 label=f"joint {j} posterior ({name} input)")).name
         p.add(Node(f"patterns/posterior_{name}", posterior.posterior_patterns,
@@ -237,15 +239,22 @@ FULL = {"baseline": ("patterns/baseline", 45), "reference": ("reference", 45),
         "posterior_numerical": ("patterns/posterior_numerical", 16)}
 
 
+def _full_wanted(name: str, inputs: list[str], opts: RunOptions) -> bool:
+    """Whether the run solves the full assembly ``name`` (:data:`FULL`): its patterns' input ran."""
+    if name in ("baseline", "reference"):
+        return name == "baseline" or "numerical" in inputs
+    source = FULL[name][0].split("/")[-1]
+    if source.startswith("posterior_"):
+        return opts.posterior and source.removeprefix("posterior_") in inputs
+    return source in inputs
+
+
 def _validation_nodes(p: Pipeline, campaign, opts: RunOptions) -> None:
     inputs = identify_inputs(campaign, opts)
     assembly = {"assembly": "ema/assembly"} if campaign.of_type("assembly") else {}
     p.add(Node("n_full_modes", full.n_full_modes, assembly, {"n_blades": campaign.n_blades}, where="parent",
                stored=False))
-    names = [n for n in FULL if n == "baseline" or (n == "reference" and "numerical" in inputs)
-             or (FULL[n][0].split("/")[-1] in inputs)
-             or (opts.posterior and n.startswith("posterior")
-                 and FULL[n][0].split("/")[-1].removeprefix("posterior_") in inputs)]
+    names = [n for n in FULL if _full_wanted(n, inputs, opts)]
     for name in names:
         pats, prio = FULL[name]
         p.add(Node(f"full/{name}", full.solve_assembly, {"cyclic": "disk_cyclic", "bd": "fe_model",

@@ -17,7 +17,7 @@ from .bias import Features, tracker_for
 from .patterns import family_samplers
 
 __all__ = ["SurrogateSolves", "N_SOLVES", "N_PARTS", "prior_node", "surrogate_solves", "surrogate_node",
-           "posterior_joint", "posterior_patterns", "answer_pattern"]
+           "delta_factors", "posterior_joint", "posterior_patterns", "answer_pattern"]
 
 #: Direct d1b solves that train and check the surrogate, split in parts so both workers share them.
 N_SOLVES, N_PARTS = 400, 4
@@ -58,16 +58,31 @@ def surrogate_node(**parts: SurrogateSolves) -> ContactSurrogate:
 
 
 def _ema_std_rel(fit, measured_hz: np.ndarray) -> np.ndarray:
-    """The EMA's relative frequency std of each matched mode (NaN where unknown or not found)."""
+    """The EMA's relative frequency std of each matched mode (NaN where unknown or not found).
+
+    ``measured_hz`` holds the EMA's own frequencies (:func:`bias.match_to_reference` copies them), so each is
+    found again by equality.
+    """
     model = getattr(fit, "model", None)
     out = np.full(measured_hz.shape, np.nan)
-    std = getattr(model, "frequency_std_hz", None)
-    if std is None:
+    if getattr(model, "frequency_std_hz", None) is None:
         return out
     for m, f in enumerate(measured_hz):
-        hit = np.flatnonzero(np.isclose(model.frequencies_hz, f, rtol=0, atol=0)) if np.isfinite(f) else []
-        if len(hit):
-            out[m] = std[hit[0]] / f
+        hit = np.flatnonzero(model.frequencies_hz == f)
+        if hit.size:
+            out[m] = model.frequency_std_hz[hit[0]] / f
+    return out
+
+
+def delta_factors(disk, blade, dataset: Dataset, baseline: ContactPattern, delta_all: np.ndarray, *,
+                  joints: list[int]) -> np.ndarray:
+    """The node: each joint's δ factor f(baseline, δ_j) / f(baseline, 0), shape (n_blades, n_modes) (NaN rows:
+    joints not listed). One solve per joint and one at δ = 0, shared by every input's posterior."""
+    tracker = tracker_for(disk, blade, dataset)
+    f0 = tracker.track(baseline).frequencies_hz
+    out = np.full((len(delta_all), f0.size), np.nan)
+    for j in joints:
+        out[j - 1] = tracker.track(baseline, delta_all[j - 1]).frequencies_hz / f0
     return out
 
 
@@ -84,20 +99,19 @@ def _target(features: Features, tracker, reference, delta, joint: int, input: st
 
 
 def posterior_joint(disk, blade, dataset: Dataset, features: Features, prior: ContactPrior,
-                    surrogate: ContactSurrogate, delta_all: np.ndarray, bd, baseline: ContactPattern, reference,
-                    fit=None, *, input: str, joint: int, seed: int) -> JointPosterior | None:
+                    surrogate: ContactSurrogate, delta_all: np.ndarray, factors: np.ndarray, bd, reference, fit=None,
+                    *, input: str, joint: int, seed: int) -> JointPosterior | None:
     """The node: one joint's posterior for one input (:func:`identify.posterior.joint_posterior`).
 
-    Its δ factor comes from two direct solves of the baseline pattern, at δ = 0 and at the joint's δ.
-    Returns ``None`` where the joint's test found none of the tracked modes.
+    ``factors`` is :func:`delta_factors`'s output. Returns ``None`` where the joint's test found none of the
+    tracked modes.
     """
     tracker = tracker_for(disk, blade, dataset)
-    delta = delta_all[joint - 1]
-    factor = tracker.track(baseline, delta).frequencies_hz / tracker.track(baseline).frequencies_hz
-    y, sigma = _target(features, tracker, reference, delta, joint, input, fit, surrogate.error_pct)
+    y, sigma = _target(features, tracker, reference, delta_all[joint - 1], joint, input, fit, surrogate.error_pct)
     if not np.any(np.isfinite(y)):
         return None
-    return joint_posterior(prior, surrogate, y, sigma, flank_coordinates(bd), factor=factor, seed=seed + joint)
+    return joint_posterior(prior, surrogate, y, sigma, flank_coordinates(bd), factor=factors[joint - 1],
+                           seed=seed + joint)
 
 
 def answer_pattern(post: JointPosterior) -> ContactPattern:

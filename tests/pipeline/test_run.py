@@ -6,6 +6,7 @@ other tests reuse its caches (warm runs), so the module stays around a minute on
 
 from __future__ import annotations
 
+import csv
 import json
 import re
 import shutil
@@ -211,6 +212,25 @@ def test_campaign_without_truth_reports_cases_a_and_c_unavailable(campaign, cold
     assert all(j["reference_area_L_pct"] is None for j in s["joints"])
     html = (out / "report.html").read_text()
     assert "unavailable" in html
+
+
+def test_posterior_runs_without_truth_and_answers_every_unfilmed_joint(campaign, cold, tmp_path):
+    root, camp = campaign
+    lab = tmp_path / "lab"
+    shutil.copytree(camp, lab, ignore=shutil.ignore_patterns("truth"))
+    out = tmp_path / "out"
+    assert main(["run", str(lab), *KNN_ONLY, "--method", "both", "--out", str(out), "--cache-dir",
+                 str(root / "cache"), "--quiet"]) == 0
+    s = json.loads((out / "summary.json").read_text())
+    known = set(s["known_joints"])
+    assert all(j["source"] == ("film" if j["joint"] in known else "posterior") for j in s["joints"])
+    post = s["methods"]["posterior"]
+    assert post["cases"]["B"]["n_modes"] > 0 and post["cases"]["A"] is None
+    assert "experimental" not in post  # no reference patterns: no geometry figures
+    rows = list(csv.reader((out / "posterior_contact.csv").read_text().splitlines()))[1:]
+    assert sorted(int(r[0]) for r in rows) == sorted(j["joint"] for j in s["joints"] if j["joint"] not in known)
+    assert all(r[7] == r[8] == "" for r in rows)  # reference areas blank, not "None"
+    assert "Contact posterior" in (out / "report.html").read_text()
 
 
 def test_a_picks_file_replaces_the_automatic_selection(campaign, cold, tmp_path):
