@@ -16,7 +16,7 @@ _DEFAULTS = RunOptions()
 
 
 def add_stage_options(p) -> None:
-    """Add ``--cache-dir --n --scale --seed --step --features --no-bias --refine --method --components --workers
+    """Add ``--cache-dir --n --scale --seed --step --features --no-bias --refine --method --rom --components --workers
     --dask-workers``."""
     d = _DEFAULTS
     p.add_argument("--allow-outside", action="store_true",
@@ -41,6 +41,10 @@ def add_stage_options(p) -> None:
                    help="how unfilmed joints are identified: the k-NN (and its refinement), the contact posterior "
                         "(beyond the paper: intervals and probability maps), or both side by side; the identified "
                         "ROM uses the posterior's answer when it ran (default: %(default)s)")
+    p.add_argument("--rom", choices=("updated", "paper"), default=d.rom,
+                   help="the ROM validated on the full assembly: 'updated' also calibrates in-situ blade corrections "
+                        "and the contact stiffness on the disk-one-blade tests (beyond the paper, shown beside the "
+                        "paper's ROM; the exported ROM), 'paper' the paper's ROM only (default: %(default)s)")
     p.add_argument("--components", type=int, default=None, metavar="K",
                    help="PCA components per flank of the contact posterior's prior (default: enough for 95 %% of "
                         "the films' variance; at most one fewer than the filmed joints)")
@@ -67,4 +71,4 @@ def stage_options(args, *, scheduler: str | None = None) -> RunOptions:
                       scale=args.scale, seed=args.seed, step_pct=args.step, n_features=args.features,
                       bias=not args.no_bias, workers=args.workers, dask_workers=args.dask_workers,
                       scheduler=scheduler, refine=args.refine,
-                      method=args.method, n_components=args.components)
+                      method=args.method, n_components=args.components, rom=args.rom)

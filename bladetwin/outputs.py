@@ -31,7 +31,23 @@ from identify.validation import contact_area_fraction, geometric_validation
 from rom.pattern_io import save_patterns
 
 from .methods import POSTERIOR_HEADER, methods_summary, posterior_rows
-from .run_figures import plot_bias, plot_blade_deltas, plot_contact_probability, plot_d1b_features, plot_joint_patterns
+from .rom_summary import (
+    CASE_HEADER,
+    CORRECTION_HEADER,
+    FAMILY_HEADER,
+    case_rows,
+    correction_rows,
+    family_rows,
+    rom_summary,
+)
+from .run_figures import (
+    plot_bias,
+    plot_blade_deltas,
+    plot_contact_probability,
+    plot_d1b_features,
+    plot_joint_patterns,
+    plot_rom_update,
+)
 from .stages import PAPER_TABLE8, RunResult
 from .stages.bias import MATCH_WINDOW
 from .user_warnings import emit, recording, unique
@@ -47,7 +63,10 @@ CASE_TITLES = {"A": "Case A (k-NN): ROM with patterns identified from the numeri
                "baseline_A": "Baseline vs the ROM with the reference patterns",
                "baseline_B": "Baseline vs measured",
                "posterior_A": "Case A with the contact posterior's answers (numerical input)",
-               "posterior_B": "Case B with the contact posterior's answers (experimental input, bias removed)"}
+               "posterior_B": "Case B with the contact posterior's answers (experimental input, bias removed)",
+               "updated_A": "Case A, updated ROM: identified (numerical input) vs reference patterns",
+               "updated_B": "Case B, updated ROM (beyond Eq. 19): identified patterns vs measured",
+               "updated_C": "Case C, updated ROM: reference patterns vs measured"}
 
 
 def _csv(path: Path, header: list[str], rows: list[list]) -> str:
@@ -389,18 +408,60 @@ def _full_section(res: RunResult, out: Path) -> dict:
     tables = [{"file": _csv(out / "table8.csv", ["case", "mean |Δf| (%)", "mean MAC", "modes", "paper |Δf| (%)",
                                                  "paper MAC"], _table8_rows(res.cases)),
                "caption": "Paper Table 8 with the baseline rows: the mean known pattern at every unfilmed joint."}]
-    exported = "posterior" if "posterior" in res.full else "identified"
+    exported = next(k for k in ("updated", "posterior", "identified") if k in res.full)
+    answer = "the contact posterior" if res.options.posterior else "the k-NN"
+    rom = "updated ROM (beyond Eq. 19)" if exported == "updated" else "paper's ROM"
     ema.write_modes(out / "identified_rom_modes.uff", rom_modal_model(res.full[exported]),
-                    id1=f"bladetwin identified ROM ({'posterior' if exported == 'posterior' else 'k-NN'}), campaign "
-                        f"{res.campaign.name}")
+                    id1=f"bladetwin identified {rom}, {answer}, campaign {res.campaign.name}")
     return {"id": "full", "title": "Full bladed disk: Cases A, B, C (Table 8)",
             "text": ["Case A: ROM with patterns identified from the numerical input against the ROM with the "
                      "reference patterns. Case B: ROM with the patterns identified from the measurements against the "
                      "measured modes. Case C: ROM with the reference patterns against the measured modes (the model "
                      "error). The baseline gives every unfilmed joint the majority pattern of the films. The "
-                     "identified ROM's modes are in identified_rom_modes.uff (UFF 55, rig DOF labels); it is the ROM "
-                     f"with {'the contact posterior' if exported == 'posterior' else 'the k-NN'}'s answers."],
+                     "identified ROM's modes are in identified_rom_modes.uff (UFF 55, rig DOF labels): the "
+                     f"{rom} with {answer}'s answers."],
             "figures": figs, "tables": tables}
+
+
+def _rom_section(res: RunResult, out: Path, rom: dict | None) -> list[dict]:
+    """The updated ROM beside the paper's: Cases A, B, C, its parameters, the family-wise view (empty if off)."""
+    if rom is None:
+        return []
+    upd = res.rom_update["answer"]
+    modes = np.flatnonzero(np.any(upd.corrections != 0, axis=0))
+    freq = upd.frequency_correction_pct(res.delta_all)[:, modes]
+    fig = _fig(plot_rom_update(freq, [f"free mode {i + 1} ({upd.free_hz[i]:.0f} Hz)" for i in modes],
+                               res.validation.families), out / "rom_update.png")
+    tables = [{"file": _csv(out / "rom_cases.csv", CASE_HEADER, [["" if v is None else v for v in r]
+                                                                 for r in case_rows(rom)]),
+               "caption": "Cases A, B and C with the paper's ROM and with the updated ROM."},
+              {"file": _csv(out / "rom_corrections.csv", CORRECTION_HEADER,
+                            [["" if v is None else v for v in r] for r in correction_rows(res)]),
+               "caption": "Each blade's in-situ corrections and its disk-one-blade residuals, both ROMs."},
+              {"file": _csv(out / "rom_families.csv", FAMILY_HEADER, family_rows(res.validation.families)),
+               "caption": "Family by family: frequency error, MAC and subspace correlation (principal angles)."}]
+    p = rom["updated"]["parameters"]
+    k = p["contact_stiffness"]
+    stiff = ("rigid ties (no filmed joint with a disk-one-blade test)" if k is None else
+             f"k_n = {k['normal_n_per_m3']:.3g} N/m³, k_t = {k['tangential_n_per_m3']:.3g} N/m³ (fitted on joints "
+             f"{', '.join(str(j) for j in k['fitted_on_joints'])})")
+    r = p["d1b_rms_residual_pct"]
+    text = ["The paper's ROM carries each blade's free-test deltas into the assembly (Eq. 19) and ties contacting "
+            "nodes rigidly. The updated ROM (beyond the paper, docs/equations.md) adds per-blade in-situ corrections "
+            "of the free modes each disk-one-blade test sees, and a contact stiffness for every joint, both fitted on "
+            "the disk-one-blade tests only: the full-assembly test is never used in the fit, it is the validation. "
+            "The exported ROM (identified_rom_modes.uff) is the updated one.",
+            f"Contact stiffness: {stiff}. Disk-one-blade RMS residual over the tracked modes: paper's ROM "
+            f"{r['paper']:.3f} %, updated ROM {r['updated']:.3f} %."]
+    for kind in ("paper", "updated"):
+        b = rom[kind]["cases"].get("B")
+        if b:
+            text.append(f"Case B, {kind} ROM: mean |Δf| {b['mean_abs_df_pct']:.3f} %, mean MAC {b['mean_mac']:.3f} "
+                        f"({b['n_modes']} modes).")
+    return [{"id": "rom_update", "title": "The ROM updated beyond Eq. 19", "text": text,
+             "figures": [{"file": fig, "caption": "Left: in-situ corrections. Right: each measured mode family's "
+                                                  "subspace correlation with the ROM's modes in its band."}],
+             "tables": tables}]
 
 
 def write_outputs(res: RunResult, out: Path, *, command: str = "bladetwin run") -> dict:
@@ -413,14 +474,16 @@ def write_outputs(res: RunResult, out: Path, *, command: str = "bladetwin run") 
         ident, joints, geo = _identification_section(res, out)
         d1b, d1b_summary = _d1b_section(res, out)
         methods = methods_summary(res)
-        sections += [ident, *_posterior_section(res, out, methods), d1b, _full_section(res, out)]
+        rom = rom_summary(res)
+        sections += [ident, *_posterior_section(res, out, methods), d1b, *_rom_section(res, out, rom),
+                     _full_section(res, out)]
     for text in unique(texts):
         emit(text)
     summary = summary_of(res, command)
     summary["notes"] = summary["notes"] + notes
     summary["warnings"] = unique(summary["warnings"] + texts)
     summary.update(_clean({"joints": joints, "sections": sections, "geometric": geo, "d1b": d1b_summary,
-                           "ema": ema_modes(res), "methods": methods}))
+                           "ema": ema_modes(res), "methods": methods, "rom": rom}))
     summary["files"] = {"patterns": "identified_patterns.npz", "rom_modes_uff": "identified_rom_modes.uff"}
     atomic_write_text(out / "summary.json", json.dumps(summary, indent=2, allow_nan=False, default=_nan) + "\n")
     return summary

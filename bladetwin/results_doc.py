@@ -17,7 +17,7 @@ from pathlib import Path
 
 from rom.fileio import atomic_path
 
-__all__ = ["Row", "lookup", "table8_rows", "contact_rows", "performance_rows", "render_results",
+__all__ = ["Row", "lookup", "table8_rows", "contact_rows", "rom_rows", "performance_rows", "render_results",
            "readme_blocks", "update_readme", "main"]
 
 #: The benchmark files ``make bench-results`` writes, by the name the tables use.
@@ -109,6 +109,19 @@ def contact_rows(docs: dict) -> list[Row]:
             if lookup(docs.get("summary.json", {}), f"geometric.{key}") is not None]
 
 
+def rom_rows(docs: dict) -> list[Row]:
+    """Cases A, B, C with the paper's ROM and the updated one (``summary.json`` → ``rom``), side by side."""
+    rows = []
+    for case in ("A", "B", "C"):
+        row = _row(f"Case {case}", docs, [("summary.json", f"rom.{kind}.cases.{case}.{key}", spec)
+                                          for kind in ("paper", "updated")
+                                          for key, spec in (("mean_abs_df_pct", ".3f"), ("mean_mac", ".3f"),
+                                                            ("n_modes", "d"))])
+        if row.cells[3] != _MISSING:
+            rows.append(row)
+    return rows
+
+
 _D1B, _FULL = "results[step=rom_d1b]", "results[step=rom_full_cyclic]"
 _CYC, _FE_FULL = "results[step=rom_disk_cyclic]", "results[step=fe_full]"
 #: (label, command, file, [(key, format)] of the figure, the reference measured in the same run, their ratio).
@@ -120,6 +133,13 @@ _PERFORMANCE = (
       (f"{_D1B}.median_solve_s / results[step=fe_d1b].seconds", ".3f")]),
     ("full ROM, 3N modes, cyclic CB disk (s); reference: FE solve", "python benchmarks/rom.py", "bench_rom.json",
      [(f"{_FULL}.seconds", ".1f"), (f"{_FE_FULL}.seconds", ".1f"), (f"{_FULL}.seconds / {_FE_FULL}.seconds", ".2f")]),
+    ("updated ROM (blades on contact springs, δ + ε): disk–one-blade solve (s); reference: paper's ROM",
+     "python benchmarks/rom.py", "bench_rom.json",
+     [(f"{_D1B}.updated_solve_s", ".3f"), (f"{_D1B}.median_solve_s", ".3f"),
+      (f"{_D1B}.updated_solve_s / {_D1B}.median_solve_s", ".2f")]),
+    ("updated ROM: full assembly, 3N modes, cyclic CB disk (s); reference: paper's ROM", "python benchmarks/rom.py",
+     "bench_rom.json", [(f"{_FULL}.updated_seconds", ".1f"), (f"{_FULL}.paper_repeat_seconds", ".1f"),
+                        (f"{_FULL}.updated_seconds / {_FULL}.paper_repeat_seconds", ".2f")]),
     ("full ROM vs FE, 3N modes: max relative frequency error, min MAC", "python benchmarks/rom.py",
      "bench_rom.json", [(f"{_FULL}.max_rel_err", ".1e"), (f"{_FULL}.min_mac", ".5f")]),
     ("full ROM peak memory (GB); reference: FE solve", "python benchmarks/rom.py", "bench_rom.json",
@@ -158,6 +178,8 @@ def _table(header: list[str], rows: list[Row], with_command: bool = False) -> li
 _T8_HEADER = ["Table 8", "mean \\|Δf\\| %", "mean MAC", "paired modes", "paper \\|Δf\\| %", "paper MAC"]
 _GEO_HEADER = ["unfilmed joints vs truth", "identified", "baseline"]
 _PERF_HEADER = ["what", "measured", "reference", "ratio", "command"]
+_ROM_HEADER = ["vs the full-assembly test", "paper's ROM \\|Δf\\| %", "paper's ROM MAC", "paired",
+               "updated ROM \\|Δf\\| %", "updated ROM MAC", "paired"]
 
 
 def _pad(rows: list[Row], n: int) -> list[Row]:
@@ -165,7 +187,7 @@ def _pad(rows: list[Row], n: int) -> list[Row]:
 
 
 def readme_blocks(docs: dict) -> dict[str, str]:
-    """The README's generated blocks by marker name: ``table8``, ``contact``, ``performance``."""
+    """The README's generated blocks by marker name: ``table8``, ``contact``, ``rom``, ``performance``."""
     s = docs.get("summary.json", {})
     run = f"`bladetwin run` on `{s.get('campaign', '?')}`"
     t8 = [f"Figures of {run} (`docs/results/summary.json`; mean over the paired modes):", "",
@@ -173,9 +195,14 @@ def readme_blocks(docs: dict) -> dict[str, str]:
     geo = contact_rows(docs)
     contact = ([f"At the unfilmed joints, against the campaign's true patterns ({run}):", "",
                 *_table(_GEO_HEADER, geo)] if geo else ["No true patterns in this campaign: no contact check."])
+    rom = rom_rows(docs)
+    rom_text = ([f"The paper's ROM (Eq. 19, rigid contact ties) and the updated ROM (in-situ corrections and "
+                 f"contact stiffness fitted on the disk–one-blade tests only), {run}:", "",
+                 *_table(_ROM_HEADER, rom)] if rom else ["The updated ROM did not run (`--rom paper`)."])
     perf = [f"{_machine(docs)}; each figure from the command beside it, with the reference it measures in the "
             "same run.", "", *_table(_PERF_HEADER, performance_rows(docs), with_command=True)]
-    return {"table8": "\n".join(t8), "contact": "\n".join(contact), "performance": "\n".join(perf)}
+    return {"table8": "\n".join(t8), "contact": "\n".join(contact), "rom": "\n".join(rom_text),
+            "performance": "\n".join(perf)}
 
 
 def _machine(docs: dict) -> str:
@@ -193,6 +220,7 @@ def render_results(docs: dict) -> str:
              "figure's file and key is in its row's `source` column.", "",
              f"## Table 8 ({s.get('campaign', '?')})", "", blocks["table8"], "",
              "## Contact at the unfilmed joints", "", blocks["contact"], "",
+             "## The paper's ROM and the updated ROM", "", blocks["rom"], "",
              "## Performance", "", blocks["performance"], "",
              "## The run these figures come from", "",
              f"- command: `{s.get('command', '?')}`; settings: `{json.dumps(s.get('settings', {}))}`",

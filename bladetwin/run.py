@@ -34,7 +34,8 @@ __all__ = ["STAGE_GROUPS", "check_campaign", "run_campaigns", "run_nodes"]
 #: Which nodes each figure of ``timings_s`` adds up (compute seconds; the stages overlap on the workers).
 STAGE_GROUPS = {"ema": ("ema/", "blade_table"), "rom": ("disk_cb", "blade_rubin", "disk_cyclic", "delta_all"),
                 "dataset": ("synthetic", "sensitivity", "dataset"),
-                "identify": ("features", "predictions", "refine/", "patterns/"),
+                "identify": ("features", "predictions", "refine/", "patterns/", "posterior/"),
+                "rom_update": ("rom_update/",),
                 "validation": ("full/", "validation", "d1b_rows", "n_full_modes")}
 
 

@@ -8,7 +8,8 @@ import numpy as np
 from matplotlib.colors import TwoSlopeNorm
 from matplotlib.figure import Figure
 
-__all__ = ["plot_blade_deltas", "plot_joint_patterns", "plot_contact_probability", "plot_d1b_features", "plot_bias"]
+__all__ = ["plot_blade_deltas", "plot_joint_patterns", "plot_contact_probability", "plot_d1b_features", "plot_bias",
+           "plot_rom_update"]
 
 
 def plot_blade_deltas(deltas_pct: np.ndarray) -> Figure:
@@ -154,4 +155,52 @@ def plot_bias(bias_pct: np.ndarray, spread_pct: np.ndarray, feature_modes: Seque
     ax.set_xlabel("tracked disk–one-blade mode (red: feature modes)")
     ax.set_ylabel("f_measured / f_ROM − 1 (%)")
     ax.set_title("ROM bias on the filmed joints (median ± spread)")
+    return fig
+
+
+def plot_rom_update(corrections_pct: np.ndarray, mode_labels: Sequence[str], families: dict) -> Figure:
+    """The updated ROM: each blade's in-situ corrections, and each family's subspace correlation, both ROMs.
+
+    Parameters
+    ----------
+    corrections_pct : ndarray, shape (n_blades, n_modes)
+        In-situ frequency correction of each blade's calibrated free modes (%).
+    mode_labels : sequence of str, length n_modes
+    families : dict name → list of :class:`identify.families.FamilyRow`
+        ``paper_B``, ``updated_B`` (and ``_C``): the family-wise view of Case B (and C).
+    """
+    c = np.asarray(corrections_pct, float)
+    fig = Figure(figsize=(12, 4.2), layout="constrained")
+    ax1, ax2 = fig.subplots(1, 2)
+    n_b, n_m = c.shape
+    width = 0.8 / max(n_m, 1)
+    for i in range(n_m):
+        ax1.bar(np.arange(1, n_b + 1) + (i - (n_m - 1) / 2) * width, c[:, i], width, label=mode_labels[i])
+    ax1.axhline(0, color="k", lw=0.6)
+    ax1.set_xlabel("blade")
+    ax1.set_ylabel("in-situ correction (% of frequency)")
+    ax1.set_title("In-situ corrections beyond Eq. 19 (from the disk–one-blade tests)")
+    if n_m:
+        ax1.legend(fontsize=7, ncol=2)
+    # Families are categories, not a curve: one group of bars per measured family (Case B), Case C as markers.
+    ref = families.get("paper_B") or families.get("updated_B") or []
+    x = np.arange(len(ref))
+    for k, kind in enumerate(("paper", "updated")):
+        for case, draw in (("B", "bar"), ("C", "marker")):
+            rows = families.get(f"{kind}_{case}")
+            if not rows or len(rows) != len(ref):
+                continue
+            y = [r.subspace_mean_cos2 for r in rows]
+            label = f"{kind} ROM, Case {case}"
+            if draw == "bar":
+                ax2.bar(x + (k - 0.5) * 0.4, y, 0.4, color=f"C{k}", label=label)
+            else:
+                ax2.plot(x + (k - 0.5) * 0.4, y, "k" + ("o" if k == 0 else "s"), mfc="none", ms=5, label=label)
+    ax2.set_xticks(x, [f"{0.5 * (r.f_low_hz + r.f_high_hz):.0f} Hz\n({r.n_measured})" for r in ref], fontsize=7)
+    ax1.xaxis.get_major_locator().set_params(integer=True)
+    ax2.set_ylim(0, 1.02)
+    ax2.set_xlabel("measured mode family: centre (number of measured modes)")
+    ax2.set_ylabel("subspace correlation (mean cos²)")
+    ax2.set_title("Full assembly, family by family: ROM vs measured")
+    ax2.legend(fontsize=7)
     return fig

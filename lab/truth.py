@@ -28,6 +28,7 @@ from threadpoolctl import threadpool_limits
 from rom.academic import BladedDisk
 from rom.component import Component
 from rom.contact import FLANKS, ContactPattern
+from rom.contact_stiffness import tributary_areas
 from rom.fe_assembly import AssemblyModes
 from rom.hex20 import assemble
 from rom.solver import solve_modes
@@ -186,20 +187,6 @@ def make_truth_twin(
     return TruthTwin(bd, blades, tuple(variations), tuple(patterns), params)
 
 
-def _tributary_areas(coords: np.ndarray) -> np.ndarray:
-    """Area (m²) each grid node stands for on its flank, shape (rows, cols), from node spacings."""
-    def weights(x: np.ndarray) -> np.ndarray:
-        d = np.diff(x)
-        w = np.zeros(x.size)
-        w[:-1] += d / 2
-        w[1:] += d / 2
-        return w
-
-    axial = coords[:, 0, 2]  # rows run axially (z)
-    along = np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(coords[0], axis=0), axis=1))]  # columns along the wall
-    return np.outer(weights(axial), weights(along))
-
-
 @dataclass(frozen=True, eq=False)
 class TruthAssembly:
     """Sparse K, M of a truth assembly over the DOFs [disk | blade of slot s₁ | blade of s₂ | ...].
@@ -252,7 +239,7 @@ def assemble_truth(twin: TruthTwin, slots: Sequence[int] | None, *, with_disk: b
             R = bd.slot_rotation(s)
             for f in FLANKS:
                 grid_b = blade.node_set(f)
-                area = _tributary_areas(blade.coords[grid_b])
+                area = tributary_areas(blade.coords[grid_b])
                 mask = twin.patterns[s - 1].flank(f)
                 nb_idx, dk_idx, k = grid_b[mask], disk.node_set(f"slot{s}_{f}")[mask], kn * area[mask]
                 # Spring energy ½ dᵀ C d with d = u_disk − R u_blade (global frame); the flank normal is the

@@ -13,7 +13,7 @@ from pathlib import Path
 
 from rom.cache import hash_inputs
 
-from . import bias, dataset, full, knn, measured, models, patterns, posterior, refinement, validation
+from . import bias, dataset, full, knn, measured, models, patterns, posterior, refinement, rom_update, validation
 from .graph import Node, Pipeline
 from .runner import Source
 
@@ -51,6 +51,10 @@ class RunOptions:
         posterior shares its features, and it takes a second) but is not refined or reported.
     n_components : int or None
         PCA components per flank of the posterior's prior; default: enough for 95 % of the films' variance.
+    rom : {"updated", "paper"}
+        ``"updated"`` (default) also calibrates the ROM beyond Eq. 19 on the disk–one-blade tests (contact
+        stiffness, in-situ blade corrections: :mod:`identify.rom_update`) and validates it beside the paper's;
+        ``"paper"``: the paper's ROM only (rigid ties, Eq. 19).
     """
 
     cache_dir: Path | None = None
@@ -67,10 +71,18 @@ class RunOptions:
     refine: int = 40
     method: str = "knn"
     n_components: int | None = None
+    rom: str = "updated"
 
     def __post_init__(self) -> None:
         if self.method not in METHODS:
             raise ValueError(f"method {self.method!r}: expected one of {', '.join(METHODS)}")
+        if self.rom not in rom_update.ROM_KINDS:
+            raise ValueError(f"rom {self.rom!r}: expected one of {', '.join(rom_update.ROM_KINDS)}")
+
+    @property
+    def updated(self) -> bool:
+        """Whether the ROM is updated beyond Eq. 19 (:mod:`bladetwin.stages.rom_update`)."""
+        return self.rom == "updated"
 
     @property
     def knn_reported(self) -> bool:
@@ -249,6 +261,38 @@ def _full_wanted(name: str, inputs: list[str], opts: RunOptions) -> bool:
     return source in inputs
 
 
+def _answer(opts: RunOptions, name: str) -> str:
+    """The node of the run's answer for input ``name``: the posterior's where it ran, else the k-NN's."""
+    return f"patterns/posterior_{name}" if opts.posterior else f"patterns/{name}"
+
+
+def _update_nodes(p: Pipeline, campaign, opts: RunOptions) -> list[str]:
+    """The ROM update's nodes (beyond Eq. 19); returns the names of its full solves. Never the assembly test."""
+    rom = {"disk": "disk_cb", "blade": "blade_rubin", "dataset": "dataset", "features": "features",
+           "delta_all": "delta_all", "bd": "fe_model"}
+    d1b = {test_name(t): f"ema/{test_name(t)}" for t in campaign.of_type("d1b")}
+    p.add(Node("rom_update/stiffness", rom_update.stiffness_node, {**rom, "known": "known", **d1b}, priority=60,
+               label="contact stiffness fitted"))
+    inputs = identify_inputs(campaign, opts)
+    sets = {"answer": _answer(opts, "experimental")}
+    if "numerical" in inputs:
+        sets["reference"] = "reference"
+    for name, pats in sets.items():
+        p.add(Node(f"rom_update/{name}", rom_update.update_node,
+                   {**rom, "stiffness": "rom_update/stiffness", "patterns": pats, **d1b}, priority=34,
+                   label=f"in-situ corrections ({'true' if name == 'reference' else 'identified'} patterns)"))
+    solves = {"updated": (_answer(opts, "experimental"), "rom_update/answer")}
+    if "reference" in sets:
+        solves["updated_reference"] = ("reference", "rom_update/reference")
+        solves["updated_numerical"] = (_answer(opts, "numerical"), "rom_update/reference")
+    for name, (pats, upd) in solves.items():
+        p.add(Node(f"full/{name}", rom_update.solve_updated,
+                   {"cyclic": "disk_cyclic", "bd": "fe_model", "blade": "blade_rubin", "patterns": pats,
+                    "delta_all": "delta_all", "n_modes": "n_full_modes", "update": upd},
+                   priority=33, label=f"full-assembly ROM '{name}' solved"))
+    return list(solves)
+
+
 def _validation_nodes(p: Pipeline, campaign, opts: RunOptions) -> None:
     inputs = identify_inputs(campaign, opts)
     assembly = {"assembly": "ema/assembly"} if campaign.of_type("assembly") else {}
@@ -261,8 +305,10 @@ def _validation_nodes(p: Pipeline, campaign, opts: RunOptions) -> None:
                                                          "blade": "blade_rubin", "patterns": pats,
                                                          "delta_all": "delta_all", "n_modes": "n_full_modes"},
                    priority=prio, label=f"full-assembly ROM '{name}' solved"))
+    if opts.updated:
+        names += _update_nodes(p, campaign, opts)
     p.add(Node("validation", validation.full_validation, {**assembly, **{n: f"full/{n}" for n in names}},
-               {"bias": opts.bias}, where="parent"))
+               {"bias": opts.bias, "answer": "posterior" if opts.posterior else "knn"}, where="parent"))
     numerical = "patterns/numerical" if "numerical" in inputs else "reference"
     p.add(Node("d1b_rows", validation.d1b_rows, {
         "disk": "disk_cb", "blade": "blade_rubin", "dataset": "dataset", "features": "features",

@@ -17,7 +17,7 @@ from .bias import Features, tracker_for
 from .patterns import family_samplers
 
 __all__ = ["SurrogateSolves", "N_SOLVES", "N_PARTS", "prior_node", "surrogate_solves", "surrogate_node",
-           "delta_factors", "posterior_joint", "posterior_patterns", "answer_pattern"]
+           "ema_std_rel", "delta_factors", "posterior_joint", "posterior_patterns", "answer_pattern"]
 
 #: Direct d1b solves that train and check the surrogate, split in parts so both workers share them.
 N_SOLVES, N_PARTS = 400, 4
@@ -57,7 +57,7 @@ def surrogate_node(**parts: SurrogateSolves) -> ContactSurrogate:
                          np.concatenate([p.frequencies_hz for p in ordered]))
 
 
-def _ema_std_rel(fit, measured_hz: np.ndarray) -> np.ndarray:
+def ema_std_rel(fit, measured_hz: np.ndarray) -> np.ndarray:
     """The EMA's relative frequency std of each matched mode (NaN where unknown or not found).
 
     ``measured_hz`` holds the EMA's own frequencies (:func:`bias.match_to_reference` copies them), so each is
@@ -95,7 +95,7 @@ def _target(features: Features, tracker, reference, delta, joint: int, input: st
     y = features.measured_hz[k]
     if input == "experimental":
         y = y / (1 + features.bias)
-    return y, noise_model(features.spread, error_pct, _ema_std_rel(fit, features.measured_hz[k]))
+    return y, noise_model(features.spread, error_pct, ema_std_rel(fit, features.measured_hz[k]))
 
 
 def posterior_joint(disk, blade, dataset: Dataset, features: Features, prior: ContactPrior,

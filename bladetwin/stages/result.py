@@ -68,6 +68,10 @@ class RunResult:
     #: Each reported method's answers (``"knn"``, ``"posterior"``) per input (``"experimental"``, ``"numerical"``):
     #: one pattern per joint 1..N, films at the filmed joints.
     answers: dict = field(default_factory=dict)
+    #: The ROM update beyond Eq. 19, when it ran (``--rom updated``): ``"stiffness"``
+    #: (:class:`identify.rom_update.StiffnessFit` or None), ``"answer"`` and, with reference patterns,
+    #: ``"reference"`` (:class:`identify.rom_update.UpdatedROM` with the run's answer or the true patterns).
+    rom_update: dict = field(default_factory=dict)
 
     @property
     def joints(self) -> np.ndarray:
@@ -165,7 +169,8 @@ def gather(res, campaign, opts: RunOptions, bd, timings: dict[str, float]) -> Ru
                      res["sensitivity"], res["dataset"], res["delta_all"], res["features"], res["predictions"],
                      final, res["baseline"], res["reference"], res["d1b_rows"], fulls,
                      res["validation"], _notes(res, campaign, opts, fits), timings, posterior=post,
-                     answers=_answers(res, opts))
+                     answers=_answers(res, opts),
+                     rom_update={k.split("/", 1)[1]: res[k] for k in res if k.startswith("rom_update/")})
 
 
 def _answers(res, opts: RunOptions) -> dict:

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -16,7 +16,7 @@ from .bias import Features, tracker_for
 from .full import FullSolve
 
 __all__ = ["MEASURED_WINDOW", "MEASURED_MAC_MIN", "FullValidation", "d1b_rows", "vs_measured", "case_figures",
-           "full_validation"]
+           "families_vs_measured", "full_validation"]
 
 #: Pairing of a ROM's modes with measured ones (Cases B, C): MAC-maximizing, within ±5 %, MAC ≥ 0.3, as the
 #: rig's own Case C check (``lab.model_error``). Measured shapes in dense families can be poor; a mode without
@@ -27,11 +27,13 @@ MEASURED_WINDOW, MEASURED_MAC_MIN = 0.05, 0.3
 @dataclass(frozen=True, eq=False)
 class FullValidation:
     """The full assembly's comparisons by name (``A``, ``B``, ``B_no_bias``, ``C``, ``baseline_A``,
-    ``baseline_B``), Table 8's figures (:func:`case_figures`) and the notes on what was not compared."""
+    ``baseline_B``…), Table 8's figures (:func:`case_figures`), the notes on what was not compared, and the
+    family-wise view of Cases B and C (``families``: name → list of :class:`identify.families.FamilyRow`)."""
 
     comparisons: dict
     cases: dict
     notes: list
+    families: dict = field(default_factory=dict)
 
 
 def d1b_rows(disk, blade, dataset: Dataset, features: Features, delta_all: np.ndarray, known: dict,
@@ -55,8 +57,7 @@ def d1b_rows(disk, blade, dataset: Dataset, features: Features, delta_all: np.nd
     return rows
 
 
-def vs_measured(measured: ema.ModalModel, rom: AssemblyModes) -> ModeComparison:
-    """A ROM's modes against the measured ones, on their common DOFs (shapes sign-aware through the MAC)."""
+def _common(measured: ema.ModalModel, rom: AssemblyModes):
     from ema.mac import common_dofs
 
     from ..campaign import CampaignError
@@ -66,8 +67,22 @@ def vs_measured(measured: ema.ModalModel, rom: AssemblyModes) -> ModeComparison:
     if pa.shape[0] < 2:
         raise CampaignError("the full-assembly test and the ROM share fewer than 2 measurement DOFs: the node "
                             "numbering of the UFF file does not follow the rig's convention (docs/campaign.md)")
+    return model, pa, pb
+
+
+def vs_measured(measured: ema.ModalModel, rom: AssemblyModes) -> ModeComparison:
+    """A ROM's modes against the measured ones, on their common DOFs (shapes sign-aware through the MAC)."""
+    model, pa, pb = _common(measured, rom)
     return compare_modes((measured.frequencies_hz, pa), (model.frequencies_hz, pb), freq_window=MEASURED_WINDOW,
                          mac_min=MEASURED_MAC_MIN)
+
+
+def families_vs_measured(measured: ema.ModalModel, rom: AssemblyModes, comparison: ModeComparison) -> list:
+    """The family-wise view (:func:`identify.families.family_view`) of one ROM against the measured modes."""
+    from identify.families import family_view
+
+    model, pa, pb = _common(measured, rom)
+    return family_view(comparison, measured.frequencies_hz, pa, model.frequencies_hz, pb)
 
 
 def case_figures(c: ModeComparison | None) -> dict | None:
@@ -96,8 +111,13 @@ def _measured_in_band(measured: ema.ModalModel, full: dict, notes: list) -> tupl
     return measured, f_max
 
 
-def full_validation(assembly=None, *, bias: bool, **solves: FullSolve) -> FullValidation:
-    """The node: Cases A, B, C and the baseline's, from the full solves by name and the assembly's EMA."""
+def full_validation(assembly=None, *, bias: bool, answer: str = "knn", **solves: FullSolve) -> FullValidation:
+    """The node: Cases A, B, C and the baseline's, from the full solves by name and the assembly's EMA.
+
+    With the updated ROM's solves (``updated``, ``updated_reference``, ``updated_numerical``), ``cases["rom"]``
+    holds Cases A, B and C of the paper's ROM (with the run's ``answer``: ``"knn"`` or ``"posterior"``) and of
+    the updated ROM, side by side.
+    """
     full = {name: s.modes for name, s in solves.items()}
     comps: dict[str, ModeComparison] = {}
     notes: list[str] = []
@@ -113,6 +133,9 @@ def full_validation(assembly=None, *, bias: bool, **solves: FullSolve) -> FullVa
             comps["C"] = vs_measured(measured, full["reference"])
         if "posterior" in full:
             comps["posterior_B"] = vs_measured(measured, full["posterior"])
+        for name, solve in (("updated_B", "updated"), ("updated_C", "updated_reference")):
+            if solve in full:
+                comps[name] = vs_measured(measured, full[solve])
     else:
         notes.append("No full-assembly test: Cases B and C are unavailable.")
     if "reference" in full:
@@ -122,11 +145,28 @@ def full_validation(assembly=None, *, bias: bool, **solves: FullSolve) -> FullVa
                 continue
             comps[name] = compare_modes((ref.frequencies_hz, ref.meas_shapes),
                                         (full[other].frequencies_hz, full[other].meas_shapes))
+        if "updated_numerical" in full:
+            upd = full["updated_reference"] if f_max is None else _in_band(full["updated_reference"], f_max)
+            comps["updated_A"] = compare_modes((upd.frequencies_hz, upd.meas_shapes),
+                                               (full["updated_numerical"].frequencies_hz,
+                                                full["updated_numerical"].meas_shapes))
     else:
         notes.append("Cases A and C need a reference pattern for every joint (truth/ of a virtual campaign, or "
                      "a film of every joint); this campaign has none, so they are unavailable.")
     cases = {k: case_figures(comps.get(k)) for k in ("A", "B", "B_no_bias", "C")}
+    families = {}
+    if measured is not None and "updated" in full:
+        by_case = {"paper_B": ("posterior_B" if answer == "posterior" else "B", "posterior" if answer == "posterior"
+                               else "identified"), "paper_C": ("C", "reference"),
+                   "updated_B": ("updated_B", "updated"), "updated_C": ("updated_C", "updated_reference")}
+        families = {name: families_vs_measured(measured, full[solve], comps[c])
+                    for name, (c, solve) in by_case.items() if c in comps}
     cases["baseline"] = {"A": case_figures(comps.get("baseline_A")), "B": case_figures(comps.get("baseline_B"))}
     if "posterior" in full:
         cases["posterior"] = {k: case_figures(comps.get(f"posterior_{k}")) for k in ("A", "B")}
-    return FullValidation(comps, cases, notes)
+    if "updated" in full:
+        paper = "posterior_" if answer == "posterior" else ""
+        cases["rom"] = {"paper": {"A": case_figures(comps.get(paper + "A")), "B": case_figures(comps.get(paper + "B")),
+                                  "C": cases["C"]},
+                        "updated": {k: case_figures(comps.get(f"updated_{k}")) for k in ("A", "B", "C")}}
+    return FullValidation(comps, cases, notes, families)

@@ -158,7 +158,7 @@ def test_a_disk_the_cyclic_reduction_refused_falls_back_on_the_sparse_hybrid(cam
     from bladetwin.stages.models import CyclicBuild
 
     cache = tmp_path / "cache"
-    shutil.copytree(root / "cache", cache, ignore=shutil.ignore_patterns("solve_assembly"))
+    shutil.copytree(root / "cache", cache, ignore=shutil.ignore_patterns("solve_assembly", "solve_updated"))
     (cyclic,) = (cache / "nodes" / "reduce_disk_all_slots").glob("*.npz")  # the cold run built it
     codec.save(cyclic, CyclicBuild(None, "the disk is not cyclic (marked by the test)"))
     capsys.readouterr()
@@ -231,6 +231,50 @@ def test_posterior_runs_without_truth_and_answers_every_unfilmed_joint(campaign,
     assert sorted(int(r[0]) for r in rows) == sorted(j["joint"] for j in s["joints"] if j["joint"] not in known)
     assert all(r[7] == r[8] == "" for r in rows)  # reference areas blank, not "None"
     assert "Contact posterior" in (out / "report.html").read_text()
+
+
+def test_updated_rom_beats_the_papers_on_the_measured_assembly(cold):
+    """The ROM updated on the disk–one-blade tests against the rig's full-assembly measurement (never fitted)."""
+    out, s = cold
+    rom = s["rom"]
+    paper, upd = rom["paper"]["cases"], rom["updated"]["cases"]
+    assert set(paper) == set(upd) == {"A", "B", "C"}
+    assert paper["B"] == s["cases"]["B"] and paper["C"] == s["cases"]["C"]
+    assert upd["B"]["mean_abs_df_pct"] < paper["B"]["mean_abs_df_pct"]
+    assert upd["B"]["mean_mac"] > paper["B"]["mean_mac"]
+    p = rom["updated"]["parameters"]
+    assert p["d1b_rms_residual_pct"]["updated"] < 0.5 * p["d1b_rms_residual_pct"]["paper"]
+    k = p["contact_stiffness"]
+    assert k["fitted_on_joints"] == s["known_joints"] and k["normal_n_per_m3"] > 0
+    assert all(b["calibrated"] and b["free_modes"] for b in p["blades"])
+    assert {f["file"] for f in next(x for x in s["sections"] if x["id"] == "rom_update")["tables"]} == {
+        "rom_cases.csv", "rom_corrections.csv", "rom_families.csv"}
+    import pyuff
+
+    assert "updated ROM" in pyuff.UFF(str(out / "identified_rom_modes.uff")).read_sets(0)["id1"]
+
+
+def test_the_rom_update_never_reads_the_assembly_test(campaign, cold, tmp_path):
+    """Calibrating without the full-assembly test (fresh store) gives the same parameters."""
+    from bladetwin.run import run_nodes
+
+    root, camp = campaign
+    lab = tmp_path / "no_assembly"
+    shutil.copytree(camp, lab)
+    _edit_manifest(lab, lambda doc: doc.update(tests=[t for t in doc["tests"] if t["type"] != "assembly"]))
+    names = ["rom_update/stiffness", "rom_update/answer"]
+    opts = dict(refine=0, workers=1)
+    got, _ = run_nodes(read_campaign(lab), names, RunOptions(cache_dir=tmp_path / "cache", **opts))
+    ref, _ = run_nodes(read_campaign(camp), names, RunOptions(cache_dir=root / "cache", **opts))
+    # The fresh store rebuilds the models, whose last bits differ with BLAS threading (the reference store was
+    # filled by `bladetwin run`): the parameters agree to round-off, far inside the fit's own uncertainty.
+    # Had the assembly test entered the fit, they would move by a share of their standard deviation.
+    a, b = got["rom_update/stiffness"], ref["rom_update/stiffness"]
+    k = lambda s: np.log([s.stiffness.normal_n_per_m3, s.stiffness.tangential_n_per_m3])  # noqa: E731
+    assert np.all(np.abs(k(a) - k(b)) <= 1e-3 * b.log_std)
+    np.testing.assert_allclose(a.corrections, b.corrections, rtol=0, atol=1e-6)
+    np.testing.assert_allclose(got["rom_update/answer"].corrections, ref["rom_update/answer"].corrections,
+                               rtol=0, atol=1e-6)
 
 
 def test_a_picks_file_replaces_the_automatic_selection(campaign, cold, tmp_path):

@@ -1,0 +1,106 @@
+"""The ROM updated beyond Eq. 19 (:mod:`identify.rom_update`): contact stiffness, in-situ corrections, full solves.
+
+Nodes: ``rom_update/stiffness`` (the filmed joints' disk–one-blade tests), ``rom_update/answer`` and
+``rom_update/reference`` (every blade's in-situ correction with the run's answer, or the true patterns), and the
+full solves ``full/updated*``. None of them takes the full-assembly test: it stays the validation.
+"""
+
+from __future__ import annotations
+
+import warnings
+from dataclasses import replace
+
+import numpy as np
+
+from identify.dataset import Dataset
+from identify.rom_update import (
+    StiffnessFit,
+    UpdatedROM,
+    calibration_warnings,
+    fit_contact_stiffness,
+    fit_corrections,
+    noise_floor,
+    tracked_sensitivity,
+)
+from rom.contact import ContactPattern
+from rom.contact_stiffness import blade_compliance_parts, interface_compliance, with_contact_stiffness
+from rom.rubin import RubinModel
+
+from .bias import Features, tracker_for
+from .full import FullSolve, solve_assembly
+from .models import CyclicBuild
+from .posterior import ema_std_rel
+
+__all__ = ["ROM_KINDS", "updated_blade", "stiffness_node", "update_node", "solve_updated"]
+
+#: ``--rom``: the paper's ROM only, or the updated one beside it (default).
+ROM_KINDS = ("paper", "updated")
+
+
+def updated_blade(blade: RubinModel, bd, stiffness) -> RubinModel:
+    """The Rubin blade on the fitted contact springs (unchanged where ``stiffness`` is None: rigid ties)."""
+    if stiffness is None:
+        return blade
+    return with_contact_stiffness(blade, interface_compliance(blade_compliance_parts(bd.blade), stiffness))
+
+
+def _sigma(features: Features, fits: dict) -> dict[int, np.ndarray]:
+    """Each tested joint's relative noise per tracked mode (:func:`identify.rom_update.noise_floor`)."""
+    return {int(j): noise_floor(ema_std_rel(fits.get(f"d1b_{int(j):02d}"), features.measured_hz[k]))
+            for k, j in enumerate(features.joints)}
+
+
+def stiffness_node(disk, blade, dataset: Dataset, features: Features, known: dict, delta_all: np.ndarray, bd,
+                   **d1b) -> StiffnessFit | None:
+    """The node: the joints' contact stiffness from the filmed joints' disk–one-blade tests (their patterns known).
+
+    ``None`` (rigid ties kept, with a warning) where no filmed joint has a disk–one-blade test.
+    """
+    sigma = _sigma(features, d1b)
+    rows = {int(j): k for k, j in enumerate(features.joints)}
+    joints = {j: (known[j], delta_all[j - 1], features.measured_hz[rows[j]], sigma[j]) for j in sorted(known)
+              if j in rows and np.isfinite(features.measured_hz[rows[j]]).any()}
+    if not joints:
+        warnings.warn("no filmed joint has a usable disk–one-blade test: the updated ROM keeps the paper's rigid "
+                      "contact ties (no contact stiffness fitted)", UserWarning, stacklevel=2)
+        return None
+    return fit_contact_stiffness(tracker_for(disk, blade, dataset), blade_compliance_parts(bd.blade), joints)
+
+
+def update_node(disk, blade, dataset: Dataset, features: Features, delta_all: np.ndarray, bd,
+                stiffness: StiffnessFit | None, patterns: list[ContactPattern], **d1b) -> UpdatedROM:
+    """The node: every tested blade's in-situ correction with its joint's pattern in ``patterns`` (one per slot).
+
+    Blades without a disk–one-blade test keep Eq. 19 (ε = 0). Warnings name the blade and the mode whose data
+    the calibration cannot use (:func:`identify.rom_update.calibration_warnings`).
+    """
+    tracker = tracker_for(disk, blade, dataset)
+    stiff = None if stiffness is None else stiffness.stiffness
+    upd = replace(tracker, blade=updated_blade(blade, bd, stiff))
+    sigma = _sigma(features, d1b)
+    n_blades, m = delta_all.shape
+    n_tracked = features.measured_hz.shape[1]
+    eps = np.zeros((n_blades, m))
+    done = np.zeros(n_blades, bool)
+    res, res_paper = np.full((n_blades, n_tracked), np.nan), np.full((n_blades, n_tracked), np.nan)
+    free_hz = np.sqrt(blade.omega2_tuned) / (2 * np.pi)
+    for k, j in enumerate(int(j) for j in features.joints):
+        y = features.measured_hz[k]
+        if not np.isfinite(y).any():
+            warnings.warn(f"blade {j}: its disk–one-blade test found none of the tracked modes: the blade keeps "
+                          "Eq. 19's free-test values, uncalibrated", UserWarning, stacklevel=2)
+            continue
+        fit = fit_corrections(upd, patterns[j - 1], delta_all[j - 1], y, sigma[j])
+        for text in calibration_warnings(j, fit, free_hz):
+            warnings.warn(text, UserWarning, stacklevel=2)
+        eps[j - 1], done[j - 1], res[j - 1] = fit.correction, True, fit.residual_pct
+        f_paper, _ = tracked_sensitivity(tracker, patterns[j - 1], delta_all[j - 1])
+        res_paper[j - 1] = (y / f_paper - 1) * 100
+    return UpdatedROM(stiff, eps, done, res, res_paper, free_hz)
+
+
+def solve_updated(cyclic: CyclicBuild, bd, blade: RubinModel, patterns: list[ContactPattern], delta_all: np.ndarray,
+                  n_modes: int, update: UpdatedROM) -> FullSolve:
+    """The node: the full bladed disk's modes with the updated ROM (blades on springs, δ + ε) and ``patterns``."""
+    return solve_assembly(cyclic, bd, updated_blade(blade, bd, update.stiffness), patterns,
+                          delta_all + update.corrections, n_modes)

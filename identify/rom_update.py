@@ -1,0 +1,416 @@
+"""The ROM updated beyond Eq. 19 on the disk–one-blade tests: in-situ blade corrections and contact stiffness.
+
+The paper's ROM carries each blade's *free* eigenvalue deviations into the assembly (Eq. 19) and ties the
+contacting nodes rigidly (Eq. 21). Two things a real specimen does are outside it (docs/design.md §8.24):
+a blade feature that the disk clamps (a root fillet) moves the blade's in-situ modes by other amounts than
+its free modes; and a joint is a finite stiffness, which puts the disk-dominated modes below the ties'.
+
+The updated ROM adds, per blade ``j``, an in-situ correction ``ε_j`` of its free-interface eigenvalues,
+``Ω_f² = diag((1 + δ_j,i + ε_j,i) ω_i²)`` (Eq. 19 with δ → δ + ε), and one contact stiffness for every joint
+(:mod:`rom.contact_stiffness`: ``k_n``, ``k_t`` in N/m³). Each disk–one-blade test (blade ``j`` in its own slot)
+measures 10 tracked modes, which fix that blade's ε on the modes the blade dominates. The filmed joints,
+whose patterns are known, also fix the contact stiffness through the disk-dominated modes.
+
+* :func:`tracked_sensitivity` — the tracked frequencies and ``∂ ln f_k / ∂ δ_i`` (analytic: an eigenvalue's
+  derivative with respect to a diagonal stiffness entry is ``φ_k,i²`` for mass-normalised modes);
+* :func:`fit_corrections` — one blade's ε by regularised Gauss–Newton (prior: Eq. 19, ε = 0);
+* :func:`fit_contact_stiffness` — ``k_n``, ``k_t`` with the filmed blades' ε, jointly (Levenberg–Marquardt);
+* :func:`calibration_warnings` — the one-line warnings on data the calibration cannot use.
+
+The full-assembly test never enters: every function here takes disk–one-blade data only.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from ema.mac import mac
+from rom.contact import ContactPattern
+from rom.contact_stiffness import ContactStiffness, interface_compliance, with_contact_stiffness
+from rom.modal import dense_modes, single_thread_blas
+
+from .errors import IdentifyError
+from .sensitivity import assign_modes, common_coords, d1b_pencil
+from .tracking import ModeTracker
+
+__all__ = ["ROM_ERROR", "PRIOR_STD", "STOP_SHARE", "DISAGREE_BOUND", "BLADE_SHARE_MIN", "InSituFit", "StiffnessFit",
+           "UpdatedROM", "tracked_sensitivity", "calibrated_modes", "fit_corrections", "fit_contact_stiffness",
+           "start_stiffness", "calibration_warnings", "noise_floor"]
+
+#: Prior standard deviation of an in-situ correction ε (relative eigenvalue). Wide on purpose: a blade mode
+#: that a disk–one-blade test sees is set by the test; one that no tracked mode sees stays at Eq. 19.
+PRIOR_STD = 0.05
+#: |ε| beyond which free and in-situ data of a blade's mode are said to disagree (relative eigenvalue, about
+#: 5 % in frequency): more than twice the largest free-blade deviation a specimen of one design shows (about
+#: 2 %), so it points at a mislabelled or damaged test rather than at the blade.
+DISAGREE_BOUND = 0.10
+#: A tracked mode is blade-dominated when the blade's free modes hold at least this share of its stiffness.
+BLADE_SHARE_MIN = 0.5
+#: The reduced model's own frequency error against its FE model (relative): Craig–Bampton + Rubin reach
+#: about 0.01 % on the academic disk (docs/rom.md). No update should fit the data closer than this.
+ROM_ERROR = 1e-4
+_LOG_K_STEP = 0.05  # finite-difference step on ln k (5 %)
+#: The stiffness fit stops when a step moves ln k by less than this share of its standard deviation.
+STOP_SHARE = 0.01
+
+
+@dataclass(frozen=True, eq=False)
+class InSituFit:
+    """One blade's in-situ correction (Eq. 19 with δ → δ + ε) fitted on its disk–one-blade test.
+
+    Attributes
+    ----------
+    correction : ndarray, shape (m,)
+        ε, relative eigenvalue correction of each free-interface mode (0: Eq. 19 unchanged).
+    frequencies_hz : ndarray, shape (n_tracked,)
+        The updated ROM's tracked frequencies after the fit.
+    measured_hz : ndarray, shape (n_tracked,)
+        The test's frequencies on the tracked modes (NaN: not found).
+    blade_share : ndarray, shape (n_tracked,)
+        Share of each tracked mode's stiffness held by the blade's free modes (0–1).
+    dominant_mode : ndarray of int, shape (n_tracked,)
+        0-based free-interface mode with the largest sensitivity for each tracked mode.
+    """
+
+    correction: np.ndarray
+    frequencies_hz: np.ndarray
+    measured_hz: np.ndarray
+    blade_share: np.ndarray
+    dominant_mode: np.ndarray
+
+    @property
+    def residual_pct(self) -> np.ndarray:
+        """Measured over fitted frequency − 1 (%), shape (n_tracked,), NaN where not measured."""
+        return (self.measured_hz / self.frequencies_hz - 1.0) * 100.0
+
+
+@dataclass(frozen=True, eq=False)
+class StiffnessFit:
+    """The joints' contact stiffness fitted on the filmed joints' disk–one-blade tests.
+
+    Attributes
+    ----------
+    stiffness : ContactStiffness
+    joints : ndarray of int, shape (n_filmed,)
+        The filmed joints fitted.
+    corrections : ndarray, shape (n_filmed, m)
+        Their blades' ε, fitted jointly with the stiffness.
+    log_std : ndarray, shape (2,)
+        Linearised standard deviation of ln k_n and ln k_t.
+    n_iter : int
+    rms_residual_pct : float
+        RMS of the tracked modes' residuals over the filmed joints at the optimum (%).
+    """
+
+    stiffness: ContactStiffness
+    joints: np.ndarray
+    corrections: np.ndarray
+    log_std: np.ndarray
+    n_iter: int
+    rms_residual_pct: float
+
+
+@dataclass(frozen=True, eq=False)
+class UpdatedROM:
+    """The ROM beyond Eq. 19: every blade's in-situ correction and the joints' contact stiffness.
+
+    Attributes
+    ----------
+    stiffness : ContactStiffness or None
+        ``None``: rigid ties (Eq. 21), as when no filmed joint has a disk–one-blade test.
+    corrections : ndarray, shape (n_blades, m)
+        ε of each blade's free-interface modes (relative eigenvalue; zeros: Eq. 19 unchanged).
+    calibrated : ndarray of bool, shape (n_blades,)
+        Blades whose disk–one-blade test was fitted.
+    residual_pct : ndarray, shape (n_blades, n_tracked)
+        Measured over updated-ROM tracked frequency − 1 (%) after the fit (NaN: no test or mode not found).
+    residual_paper_pct : ndarray, shape (n_blades, n_tracked)
+        The same for the paper's ROM (rigid ties, Eq. 19), for comparison.
+    free_hz : ndarray, shape (m,)
+        The tuned ROM blade's free-interface frequencies (Hz), naming the modes.
+    """
+
+    stiffness: ContactStiffness | None
+    corrections: np.ndarray
+    calibrated: np.ndarray
+    residual_pct: np.ndarray
+    residual_paper_pct: np.ndarray
+    free_hz: np.ndarray
+
+    def frequency_correction_pct(self, delta_all: np.ndarray) -> np.ndarray:
+        """The corrections as in-situ frequency changes (%) of each free mode, shape (n_blades, m)."""
+        return (np.sqrt((1 + delta_all + self.corrections) / (1 + delta_all)) - 1) * 100
+
+
+def noise_floor(ema_std_rel: np.ndarray) -> np.ndarray:
+    """Relative noise per tracked mode (shape as given): the EMA's std (its median where a mode has none) and
+    the ROM's own error :data:`ROM_ERROR`, in quadrature."""
+    s = np.asarray(ema_std_rel, np.float64).copy()
+    ok = np.isfinite(s) & (s > 0)
+    s[~ok] = np.median(s[ok]) if ok.any() else 0.0
+    return np.sqrt(s**2 + ROM_ERROR**2)
+
+
+def tracked_sensitivity(tracker: ModeTracker, pattern: ContactPattern, delta) -> tuple[np.ndarray, np.ndarray]:
+    """Tracked d1b frequencies and their sensitivities to the blade's eigenvalue factors (Eq. 19).
+
+    Parameters
+    ----------
+    tracker : ModeTracker
+        Its ``blade`` is the model solved (rigid ties or on springs).
+    pattern : ContactPattern
+    delta : ndarray, shape (m,)
+        The blade's δ (+ ε), relative.
+
+    Returns
+    -------
+    frequencies_hz : ndarray, shape (n_tracked,)
+    jacobian : ndarray, shape (n_tracked, m)
+        ``∂ ln f_k / ∂ δ_i = ω_i² φ_k,i² / (2 λ_k)`` with φ_k mass-normalised and ``i`` the blade's i-th
+        free-interface coordinate (the stiffness's only δ-dependent entry, Eq. 19).
+    """
+    K, M = d1b_pencil(tracker.disk, tracker.blade, pattern.L, pattern.R, formulation=tracker.formulation,
+                      delta=delta)
+    with single_thread_blas():
+        dm = dense_modes(K, M, tracker.n_modes + tracker.n_extra, max_rigid=6)
+        common = common_coords(K.shape[0], tracker.disk, tracker.blade)
+        cols, _ = assign_modes(mac(tracker.shapes, dm.shapes[common], weight=tracker.weight))
+    f = np.asarray(dm.frequencies_hz[cols], np.float64)
+    phi = dm.shapes[:, cols]
+    phi = phi / np.sqrt(np.einsum("ik,ik->k", phi, M @ phi))
+    blade = tracker.blade
+    first = tracker.disk.n + blade.n_r  # the d1b assembly puts the disk's coordinates, then η_r, then η_f
+    lam = (2 * np.pi * f) ** 2
+    jac = 0.5 * phi[first:first + blade.m].T ** 2 * blade.omega2_tuned[None, :] / lam[:, None]
+    return f, jac
+
+
+def _gn_step(r: np.ndarray, jac: np.ndarray, sigma: np.ndarray, eps: np.ndarray, prior_std: float) -> np.ndarray:
+    """The regularised Gauss–Newton step on ε: min ‖(r − J Δ)/σ‖² + ‖(ε + Δ)/τ‖²."""
+    Jw = jac / sigma[:, None]
+    A = Jw.T @ Jw + np.eye(eps.size) / prior_std**2
+    b = Jw.T @ (r / sigma) - eps / prior_std**2
+    return np.linalg.solve(A, b)
+
+
+def calibrated_modes(jacobian: np.ndarray) -> np.ndarray:
+    """The free-interface modes an in-situ fit corrects: the one that dominates each blade-dominated tracked mode.
+
+    One correction per blade and mode family, as the Fundamental Mistuning Model has one deviation per blade and
+    family (Feiner & Griffin). Modes no tracked mode is dominated by stay at Eq. 19: the test cannot tell
+    them apart from the disk's or the joint's errors.
+
+    Parameters
+    ----------
+    jacobian : ndarray, shape (n_tracked, m)
+        From :func:`tracked_sensitivity`.
+
+    Returns
+    -------
+    ndarray of int, sorted, 0-based
+    """
+    share = 2 * jacobian.sum(axis=1)
+    return np.unique(np.argmax(jacobian[share >= BLADE_SHARE_MIN], axis=1))
+
+
+def fit_corrections(tracker: ModeTracker, pattern: ContactPattern, delta: np.ndarray, measured_hz: np.ndarray,
+                    sigma_rel: np.ndarray, *, prior_std: float = PRIOR_STD, n_iter: int = 3,
+                    start: np.ndarray | None = None) -> InSituFit:
+    """One blade's in-situ correction ε from its disk–one-blade test (regularised Gauss–Newton in ln f).
+
+    Only :func:`calibrated_modes` are corrected; the others keep ε = 0.
+
+    Parameters
+    ----------
+    tracker : ModeTracker
+        With the model to update (``tracker.blade``: rigid ties, or on springs).
+    pattern : ContactPattern
+        The joint's pattern (film, identified or reference).
+    delta : ndarray, shape (m,)
+        The blade's free deltas (Eq. 19, relative).
+    measured_hz : ndarray, shape (n_tracked,)
+        The test's frequencies on the tracked modes (NaN: not found).
+    sigma_rel : ndarray, shape (n_tracked,)
+        Relative noise of each (:func:`noise_floor`).
+    start : ndarray, shape (m,), optional
+        Starting ε (default zeros).
+    """
+    delta = np.asarray(delta, np.float64)
+    y = np.asarray(measured_hz, np.float64)
+    use = np.isfinite(y) & (y > 0)
+    eps = np.zeros(delta.size) if start is None else np.asarray(start, np.float64).copy()
+    f, jac = tracked_sensitivity(tracker, pattern, delta + eps)
+    free = calibrated_modes(jac)
+    for _ in range(n_iter if use.any() and free.size else 0):
+        step = _gn_step(np.log(y[use] / f[use]), jac[np.ix_(use, free)], np.asarray(sigma_rel)[use], eps[free],
+                        prior_std)
+        eps[free] = np.maximum(eps[free] + step, -0.5 - delta[free])  # keeps (1 + δ + ε) ω² positive
+        f, jac = tracked_sensitivity(tracker, pattern, delta + eps)
+    return InSituFit(eps, f, y, 2 * jac.sum(axis=1), np.argmax(jac, axis=1))
+
+
+def start_stiffness(tracker: ModeTracker, compliance_unit: np.ndarray) -> float:
+    """A scale-free starting stiffness (N/m³): where the springs are as compliant as the blade's own root.
+
+    ``compliance_unit`` is the springs' compliance at 1 N/m³ normal and tangential (shape (n_nodes, 3, 3)).
+    """
+    blade = tracker.blade
+    g = np.median(np.diag(blade.G_bb)[: blade.n_interface])
+    c = np.median(np.einsum("nii->ni", compliance_unit))
+    return float(c / g)
+
+
+def fit_contact_stiffness(tracker: ModeTracker, compliance_unit: np.ndarray, joints: dict, *,
+                          prior_std: float = PRIOR_STD, max_iter: int = 12, log_prior_std: float = np.log(1e3),
+                          progress=None) -> StiffnessFit:
+    """Contact stiffness (k_n, k_t) and the filmed blades' ε, jointly, by Levenberg–Marquardt.
+
+    The disk-dominated tracked modes carry the stiffness; each blade's ε takes its :func:`calibrated_modes`.
+    Stops when an iteration moves ln k by less than :data:`STOP_SHARE` of its standard deviation (from the
+    normal equations): finer steps are below what the data resolve, and below the round-off of the ROM's
+    eigen-solves, which makes the cost flat to about 1e-5 near the optimum (a model rebuilt on other BLAS
+    threads moves k by about 5e-5 relative).
+
+    Parameters
+    ----------
+    tracker : ModeTracker
+        With the paper's (rigid-tie) blade.
+    compliance_unit : ndarray, shape (2, n_nodes, 3, 3)
+        The springs' compliance at 1 N/m³, normal part then tangential part
+        (:func:`rom.contact_stiffness.blade_compliance_parts`).
+    joints : dict joint → (pattern, delta (m,), measured_hz (n_tracked,), sigma_rel (n_tracked,))
+        The filmed joints with their known patterns.
+    log_prior_std : float
+        Std of the Gaussian prior on ln k around the start (:func:`start_stiffness`); wide (a factor 1000).
+
+    Returns
+    -------
+    StiffnessFit
+    """
+    if not joints:
+        raise IdentifyError("the contact stiffness needs at least one filmed joint with a disk–one-blade test")
+    problem = _StiffnessProblem(tracker, compliance_unit, joints, prior_std, log_prior_std)
+    log_k = problem.log_k0.copy()
+    eps = {j: np.zeros(tracker.blade.m) for j in problem.keys}
+    cost, parts = problem.evaluate(log_k, eps)
+    problem.free = {j: calibrated_modes(parts[j][1]) for j in problem.keys}
+    lm, it = 1e-2, 0
+    for it in range(1, max_iter + 1):
+        A, b = problem.normal_equations(log_k, eps, parts)
+        while True:
+            step = np.linalg.solve(A + lm * np.diag(np.diag(A)), b)
+            step[:2] = np.clip(step[:2], -1.0, 1.0)  # at most a factor e per iteration on k
+            new_k, new_eps = log_k + step[:2], problem.add(eps, step[2:])
+            new_cost, new_parts = problem.evaluate(new_k, new_eps)
+            if new_cost <= cost or lm > 1e6:
+                break
+            lm *= 10
+        if new_cost > cost:
+            break
+        log_k, eps, cost, parts, lm = new_k, new_eps, new_cost, new_parts, max(lm / 10, 1e-6)
+        if progress is not None:
+            progress(f"contact stiffness, iteration {it}: k_n = {np.exp(log_k[0]):.3g}, "
+                     f"k_t = {np.exp(log_k[1]):.3g} N/m³")
+        if np.all(np.abs(step[:2]) < STOP_SHARE * np.sqrt(np.diag(np.linalg.inv(A))[:2])):
+            break
+    A, _ = problem.normal_equations(log_k, eps, parts)
+    cov = np.linalg.inv(A)
+    res = np.concatenate([p[3] for p in parts.values()]) * 100
+    return StiffnessFit(ContactStiffness(float(np.exp(log_k[0])), float(np.exp(log_k[1]))),
+                        np.array(problem.keys, np.int64), np.array([eps[j] for j in problem.keys]),
+                        np.sqrt(np.diag(cov)[:2]), it, float(np.sqrt(np.mean(res**2))))
+
+
+class _StiffnessProblem:
+    """The least-squares problem of :func:`fit_contact_stiffness` over [ln k_n, ln k_t, each blade's ε(free)]."""
+
+    def __init__(self, tracker, compliance_unit, joints, prior_std, log_prior_std):
+        self.tracker, self.unit, self.joints = tracker, compliance_unit, joints
+        self.prior_std, self.log_prior_std = prior_std, log_prior_std
+        self.keys = sorted(joints)
+        self.log_k0 = np.full(2, np.log(start_stiffness(tracker, compliance_unit[0] + compliance_unit[1])))
+        self.free: dict = {}
+
+    def solve(self, log_k, j, eps):
+        k = np.exp(log_k)
+        blade = with_contact_stiffness(self.tracker.blade,
+                                       interface_compliance(self.unit, ContactStiffness(float(k[0]), float(k[1]))))
+        pat, delta, _, _ = self.joints[j]
+        return tracked_sensitivity(replace(self.tracker, blade=blade), pat, delta + eps)
+
+    def evaluate(self, log_k, eps):
+        """(cost, {joint: (f, jac, use, r)}) at ln k and ε."""
+        parts, cost = {}, float(np.sum(((log_k - self.log_k0) / self.log_prior_std) ** 2))
+        for j in self.keys:
+            _, _, y, s = self.joints[j]
+            f, jac = self.solve(log_k, j, eps[j])
+            use = np.isfinite(y) & (y > 0)
+            r = np.log(y[use] / f[use])
+            parts[j] = (f, jac, use, r)
+            cost += float(np.sum((r / s[use]) ** 2) + np.sum((eps[j] / self.prior_std) ** 2))
+        return cost, parts
+
+    def _offsets(self):
+        sizes = [self.free[j].size for j in self.keys]
+        return 2 + np.r_[0, np.cumsum(sizes)].astype(int)
+
+    def add(self, eps, step):
+        out, off = {}, self._offsets() - 2
+        for q, j in enumerate(self.keys):
+            e = eps[j].copy()
+            fr = self.free[j]
+            e[fr] = np.maximum(e[fr] + step[off[q]:off[q + 1]], -0.5 - self.joints[j][1][fr])
+            out[j] = e
+        return out
+
+    def normal_equations(self, log_k, eps, parts):
+        """Gauss–Newton normal equations (ln k by finite differences of :data:`_LOG_K_STEP`, ε analytic)."""
+        off = self._offsets()
+        A = np.zeros((off[-1], off[-1]))
+        b = np.zeros(off[-1])
+        A[:2, :2] += np.eye(2) / self.log_prior_std**2
+        b[:2] -= (log_k - self.log_k0) / self.log_prior_std**2
+        for q, j in enumerate(self.keys):
+            _, _, _, s = self.joints[j]
+            f, jac, use, r = parts[j]
+            jk = np.empty((int(use.sum()), 2))
+            for p in range(2):
+                lk = log_k.copy()
+                lk[p] += _LOG_K_STEP
+                jk[:, p] = np.log(self.solve(lk, j, eps[j])[0][use] / f[use]) / _LOG_K_STEP
+            fr = self.free[j]
+            J = np.hstack([jk, jac[np.ix_(use, fr)]]) / s[use][:, None]
+            idx = np.r_[0, 1, np.arange(off[q], off[q + 1])]
+            A[np.ix_(idx, idx)] += J.T @ J
+            b[idx] += J.T @ (r / s[use])
+            blk = np.arange(off[q], off[q + 1])
+            A[blk, blk] += 1 / self.prior_std**2
+            b[blk] -= eps[j][fr] / self.prior_std**2
+        return A, b
+
+
+def calibration_warnings(blade: int, fit: InSituFit, free_hz: np.ndarray, *, bound: float = DISAGREE_BOUND
+                         ) -> list[str]:
+    """One line per problem of one blade's calibration data, naming the blade and the mode.
+
+    * a blade-dominated tracked mode that its disk–one-blade test lacks (that free mode stays at Eq. 19);
+    * a free mode whose in-situ correction exceeds ``bound`` (free and in-situ data disagree).
+
+    Parameters
+    ----------
+    free_hz : ndarray, shape (m,)
+        The ROM blade's free-interface frequencies (Hz), to name the modes.
+    """
+    out = []
+    for k in np.flatnonzero((fit.blade_share >= BLADE_SHARE_MIN) & ~np.isfinite(fit.measured_hz)):
+        i = int(fit.dominant_mode[k])
+        out.append(f"blade {blade}: its disk–one-blade test lacks tracked mode {k + 1} "
+                   f"({fit.frequencies_hz[k]:.1f} Hz, blade-dominated): free mode {i + 1} ({free_hz[i]:.1f} Hz) "
+                   "keeps Eq. 19's value, uncalibrated")
+    for i in np.flatnonzero(np.abs(fit.correction) > bound):
+        out.append(f"blade {blade}, free mode {i + 1} ({free_hz[i]:.1f} Hz): the disk–one-blade test puts it "
+                   f"{100 * fit.correction[i]:+.1f} % (eigenvalue) from the free test's Eq. 19 value, beyond "
+                   f"±{100 * bound:.0f} %: check that the blade and disk–one-blade files belong to blade {blade}")
+    return out

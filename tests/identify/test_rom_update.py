@@ -1,0 +1,103 @@
+"""The ROM update beyond Eq. 19 (identify.rom_update): sensitivities, in-situ corrections, contact stiffness.
+
+The data are disk–one-blade frequencies of a known updated ROM (stiffness and corrections drawn here), and the
+fits must find them again; the sensitivities are checked against finite differences.
+"""
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from identify.errors import IdentifyError
+from identify.rom_update import (
+    InSituFit,
+    calibrated_modes,
+    calibration_warnings,
+    fit_contact_stiffness,
+    fit_corrections,
+    noise_floor,
+    tracked_sensitivity,
+)
+from identify.tracking import ModeTracker
+from rom.contact import ContactPattern
+from rom.contact_stiffness import ContactStiffness, blade_compliance_parts, interface_compliance, with_contact_stiffness
+from tests.rom import rom_models
+
+TRUE_K = ContactStiffness(6e13, 4e13)
+
+
+@pytest.fixture(scope="module")
+def setup():
+    bd = rom_models.bladed_disk()
+    disk, blade = rom_models.disk_cb(), rom_models.blade(keep_basis=False)
+    rng = np.random.default_rng(11)
+    pats = [ContactPattern.random(bd.params.grid, 0.7, rng) for _ in range(3)]
+    tracker = ModeTracker.from_reference(disk, blade, pats[0].L, pats[0].R, 10)
+    parts = blade_compliance_parts(bd.blade)
+    return bd, tracker, parts, pats
+
+
+def _truth(tracker, parts, pattern, delta, eps):
+    sprung = with_contact_stiffness(tracker.blade, interface_compliance(parts, TRUE_K))
+    return tracked_sensitivity(replace(tracker, blade=sprung), pattern, delta + eps)[0]
+
+
+def test_sensitivities_match_finite_differences(setup):
+    _, tracker, _, pats = setup
+    delta = np.zeros(tracker.blade.m)
+    f, jac = tracked_sensitivity(tracker, pats[1], delta)
+    h = 1e-4
+    for i in calibrated_modes(jac):
+        up, down = delta.copy(), delta.copy()
+        up[i] += h
+        down[i] -= h
+        fd = np.log(tracked_sensitivity(tracker, pats[1], up)[0] / tracked_sensitivity(tracker, pats[1], down)[0])
+        np.testing.assert_allclose(jac[:, i], fd / (2 * h), rtol=1e-3, atol=1e-4)
+    assert np.all(2 * jac.sum(axis=1) <= 1 + 1e-9)  # a share of the mode's stiffness
+
+
+def test_in_situ_corrections_are_recovered(setup):
+    _, tracker, parts, pats = setup
+    m = tracker.blade.m
+    delta = np.r_[0.004, -0.006, 0.002, np.zeros(m - 3)]
+    _, jac = tracked_sensitivity(tracker, pats[1], delta)
+    modes = calibrated_modes(jac)
+    assert modes.size >= 2  # the d1b test sees at least the first bending and torsion families
+    eps = np.zeros(m)
+    eps[modes] = np.linspace(0.03, -0.01, modes.size)  # a root fillet: +3 % on the first family
+    y = _truth(tracker, parts, pats[1], delta, eps)
+    sprung = replace(tracker, blade=with_contact_stiffness(tracker.blade, interface_compliance(parts, TRUE_K)))
+    fit = fit_corrections(sprung, pats[1], delta, y, noise_floor(np.full(y.size, np.nan)))
+    np.testing.assert_allclose(fit.correction[modes], eps[modes], atol=2e-3)
+    assert np.max(np.abs(fit.residual_pct)) < 0.01
+
+
+def test_contact_stiffness_and_corrections_are_recovered_jointly(setup):
+    _, tracker, parts, pats = setup
+    m = tracker.blade.m
+    joints = {}
+    for j, pat in enumerate(pats[1:], start=1):
+        delta = np.r_[0.003 * j, np.zeros(m - 1)]
+        eps = np.zeros(m)
+        eps[0] = 0.02 * (j - 1)
+        y = _truth(tracker, parts, pat, delta, eps)
+        joints[j] = (pat, delta, y, noise_floor(np.full(y.size, np.nan)))
+    fit = fit_contact_stiffness(tracker, parts, joints)
+    assert fit.stiffness.normal_n_per_m3 == pytest.approx(TRUE_K.normal_n_per_m3, rel=0.1)
+    assert fit.stiffness.tangential_n_per_m3 == pytest.approx(TRUE_K.tangential_n_per_m3, rel=0.1)
+    assert fit.corrections[1, 0] == pytest.approx(0.02, abs=2e-3)
+    assert fit.rms_residual_pct < 0.01
+    with pytest.raises(IdentifyError, match="at least one filmed joint"):
+        fit_contact_stiffness(tracker, parts, {})
+
+
+def test_unusable_calibration_data_is_named_by_blade_and_mode():
+    n = 4
+    fit = InSituFit(correction=np.r_[0.15, 0.0, 0.0], frequencies_hz=np.array([100.0, 200.0, 300.0, 400.0]),
+                    measured_hz=np.array([100.0, np.nan, 300.0, 400.0]), blade_share=np.array([0.9, 0.8, 0.1, 0.2]),
+                    dominant_mode=np.zeros(n, int) + np.array([0, 1, 0, 0]))
+    texts = calibration_warnings(7, fit, np.array([90.0, 180.0, 600.0]))
+    assert any("blade 7" in t and "lacks tracked mode 2" in t and "free mode 2" in t for t in texts), texts
+    assert any("blade 7, free mode 1" in t and "+15.0 %" in t for t in texts), texts
+    assert len(texts) == 2
