@@ -29,6 +29,8 @@ SMALL = ["--level", "coarse", "--blades", "6", "--grid", "3x7", "--known", "3,4"
 #: The paper's k-NN alone: every test but the refinement's runs without it, so the module stays short; the
 #: refinement test runs the default (refinement on).
 KNN_ONLY = ["--refine", "0"]
+#: Runs that check something else than the ROM update skip it (it only adds time there).
+PAPER_ROM = ["--rom", "paper"]
 
 
 @pytest.fixture(scope="module")
@@ -162,7 +164,7 @@ def test_a_disk_the_cyclic_reduction_refused_falls_back_on_the_sparse_hybrid(cam
     (cyclic,) = (cache / "nodes" / "reduce_disk_all_slots").glob("*.npz")  # the cold run built it
     codec.save(cyclic, CyclicBuild(None, "the disk is not cyclic (marked by the test)"))
     capsys.readouterr()
-    assert main(["run", str(camp), *KNN_ONLY, "--workers", "1", "--out", str(tmp_path / "out"),
+    assert main(["run", str(camp), *KNN_ONLY, *PAPER_ROM, "--workers", "1", "--out", str(tmp_path / "out"),
                  "--cache-dir", str(cache)]) == 0
     err = capsys.readouterr().err
     assert "full-assembly ROM 'baseline' solved" in err and "disk built" not in err, err
@@ -177,7 +179,7 @@ def test_a_disk_the_cyclic_reduction_refused_falls_back_on_the_sparse_hybrid(cam
 def test_refinement_improves_the_feature_match_and_is_cached(campaign, cold, capsys):
     root, camp = campaign
     out, s = cold
-    args = ["run", str(camp), "--cache-dir", str(root / "cache")]  # the default: refinement on
+    args = ["run", str(camp), *PAPER_ROM, "--cache-dir", str(root / "cache")]  # the default: refinement on
     capsys.readouterr()
     assert main([*args, "--out", str(root / "refined")]) == 0
     err = capsys.readouterr().err
@@ -219,7 +221,7 @@ def test_posterior_runs_without_truth_and_answers_every_unfilmed_joint(campaign,
     lab = tmp_path / "lab"
     shutil.copytree(camp, lab, ignore=shutil.ignore_patterns("truth"))
     out = tmp_path / "out"
-    assert main(["run", str(lab), *KNN_ONLY, "--method", "both", "--out", str(out), "--cache-dir",
+    assert main(["run", str(lab), *KNN_ONLY, *PAPER_ROM, "--method", "both", "--out", str(out), "--cache-dir",
                  str(root / "cache"), "--quiet"]) == 0
     s = json.loads((out / "summary.json").read_text())
     known = set(s["known_joints"])
@@ -304,7 +306,8 @@ def test_a_picks_file_replaces_the_automatic_selection(campaign, cold, tmp_path)
 
     _edit_manifest(lab, add_picks)
     out = tmp_path / "out"
-    assert main(["run", str(lab), *KNN_ONLY, "--out", str(out), "--cache-dir", str(root / "cache"), "--quiet"]) == 0
+    assert main(["run", str(lab), *KNN_ONLY, *PAPER_ROM, "--out", str(out), "--cache-dir", str(root / "cache"),
+                 "--quiet"]) == 0
     s = json.loads((out / "summary.json").read_text())
     rows = list(csv_rows(out / "assembly_modes.csv"))
     assert len(rows) == len(chosen) < auto.model.n_modes
