@@ -48,11 +48,12 @@ from scipy.ndimage import map_coordinates
 from rom.contact import ContactPattern
 
 from .errors import IdentifyError
-from .film_checks import check_imprint_in_cells, check_imprint_in_frame, match_gray_scale
+from .film_checks import check_imprint_in_cells, check_imprint_in_frame, match_gray_scale, rotation_visible
 
 __all__ = [
     "FilmGeometry",
     "FilmMap",
+    "orientation_checked",
     "MIN_PIXELS_PER_SPACING",
     "contact_pattern",
     "find_imprint",
@@ -422,6 +423,14 @@ def _cells_box(geometry: FilmGeometry, grid: tuple[int, int]) -> tuple[float, fl
     sr, sc = geometry.pixels_per_spacing()
     top, left = geometry.origin[0] - 0.5 * sr, geometry.origin[1] - 0.5 * sc
     return top, top + grid[0] * sr, left, left + grid[1] * sc
+
+
+def orientation_checked(film: FilmMap) -> bool:
+    """Whether reading ``film`` could have seen a scan rotated by 90° (its geometry given, its cells' box not
+    square); where it could not, the scan was read as given (image rows along the grid's rows)."""
+    if film.geometry_source != "given":
+        return False
+    return rotation_visible(_cells_box(film.geometry, film.gray.shape), film.geometry.pixels_per_spacing())
 
 
 def _warn(path, note: str) -> None:

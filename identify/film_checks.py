@@ -21,9 +21,9 @@ The checks
   of the image has no unexposed film around it (an all-black scan, or one cropped inside the imprint) and is
   refused; one that reaches some edges is read with a warning, since the scan may cut it.
 
-A 90° rotation cannot be seen when the cells' box is square: then the image's orientation note is all a
-reader has. Nothing here checks an imprint smaller than the cells' box: a flank whose edge rows carry no
-pressure looks the same as a ``pixel_size`` too small.
+A 90° rotation cannot be seen when the cells' box is square (:func:`rotation_visible`): such films are read
+as scanned, and `bladetwin run` names them in a note. Nothing here checks an imprint smaller than the cells'
+box: a flank whose edge rows carry no pressure looks the same as a ``pixel_size`` too small.
 """
 
 from __future__ import annotations
@@ -35,7 +35,7 @@ import numpy as np
 from .errors import IdentifyError
 
 __all__ = ["WHITE_RATIO", "BIT_DEPTH_FACTORS", "MAX_ROTATION_DEG", "EDGE_PIXELS", "match_gray_scale",
-           "imprint_tolerance", "check_imprint_in_cells", "check_imprint_in_frame"]
+           "imprint_tolerance", "check_imprint_in_cells", "rotation_visible", "check_imprint_in_frame"]
 
 #: The scan's unexposed level and the metadata's ``white`` may differ by at most this factor: the same film
 #: stock on the same scanner does not change its white by 2×, while a scan of another bit depth or an
@@ -124,7 +124,7 @@ def check_imprint_in_cells(imprint: tuple[float, float, float, float], cells: tu
         return
     what = (f"the imprint spans {h:.0f} × {w:.0f} pixels (rows × columns) but the grid's cells span {ch:.0f} × "
             f"{cw:.0f} at this origin, spacing and pixel_size")
-    if abs(h - cw) <= 2 * tol_c and abs(w - ch) <= 2 * tol_r and abs(h - w) > 2 * max(tol_r, tol_c):
+    if abs(h - cw) <= 2 * tol_c and abs(w - ch) <= 2 * tol_r and rotation_visible(cells, spacing_px):
         raise IdentifyError(f"{what}: the scan looks rotated by 90°; rotate it so that image rows run along the "
                             "grid's rows (see the campaign's orientation note)")
     fr, fc = h / ch, w / cw
@@ -134,6 +134,22 @@ def check_imprint_in_cells(imprint: tuple[float, float, float, float], cells: tu
                             f"off? The imprint suggests pixel_size ≈ {pixel_size / f:.4g}")
     beyond = over[side] + (tol_r if side in ("top", "bottom") else tol_c)
     raise IdentifyError(f"origin / spacing: {what}; the imprint reaches {beyond:.0f} pixels beyond their {side} edge")
+
+
+def rotation_visible(cells: tuple[float, float, float, float], spacing_px: tuple[float, float]) -> bool:
+    """Whether :func:`check_imprint_in_cells` can tell a 90° rotated scan: the cells' box, transposed, must differ
+    from itself by more than the imprint's tolerance (the same test as the rotation message's).
+
+    Parameters
+    ----------
+    cells : (top, bottom, left, right)
+        Pixel edges of the nodes' cells.
+    spacing_px : (float, float)
+        Grid spacing in pixels along rows and columns.
+    """
+    ch, cw = _extent(cells)
+    tol = max(imprint_tolerance(spacing_px[0], cw), imprint_tolerance(spacing_px[1], ch))
+    return abs(ch - cw) > 2 * tol
 
 
 def check_imprint_in_frame(imprint: tuple[float, float, float, float], shape: tuple[int, int]) -> str:

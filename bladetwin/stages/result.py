@@ -8,6 +8,7 @@ from pathlib import Path
 import numpy as np
 
 from identify.dataset import Dataset
+from identify.film import orientation_checked
 from identify.validation import GridError
 from rom.contact import ContactPattern
 
@@ -122,11 +123,15 @@ def _film_note(films: dict) -> str | None:
     maps = [m for pair in films.values() for m in pair]
     placed = [Path(m.name).name for m in maps if m.geometry_source != "given"]
     otsu = [Path(m.name).name for m in maps if m.threshold_source == "otsu"]
+    unturned = [Path(m.name).name for m in maps if m.geometry_source == "given" and not orientation_checked(m)]
     parts = []
     if placed:
         parts.append(f"placed by their imprint's bounding box (no origin, spacing and pixel_size): {', '.join(placed)}")
     if otsu:
         parts.append(f"thresholded by Otsu's rule (no contact_level): {', '.join(otsu)}")
+    if unturned:
+        parts.append("read as scanned, image rows along the grid's rows: their flank's cells are square in the "
+                     f"image, so a scan rotated by 90° cannot be told from the imprint: {', '.join(unturned)}")
     return ("Films " + "; ".join(parts) + ".") if parts else None
 
 

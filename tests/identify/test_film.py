@@ -400,3 +400,18 @@ def test_imprint_placement_checks_the_frame():
     rng = np.random.default_rng(1)
     with pytest.raises(IdentifyError, match="<array>: the imprint fills the image up to every edge"):
         map_film(25.0 + rng.normal(0, 2.0, (100, 100)), (3, 7))  # all black, no metadata
+
+
+def test_a_square_flank_says_its_rotation_cannot_be_seen():
+    """Square cells: the rotated scan is read (its transposed box fits), and the reader says it could not check."""
+    from identify.film import orientation_checked
+
+    image = _rect_film(box=(100, 200, 100, 200))  # a 10 × 10 grid of 10-pixel cells
+    geo = FilmGeometry(origin=(104.5, 104.5), spacing=(10.0, 10.0), grid=(10, 10))
+    square = map_film(np.rot90(image), (10, 10), geo, threshold=145.0, white=230.0)
+    assert not orientation_checked(square)
+    wide = map_film(_rect_film(), (7, 20), FilmGeometry(origin=(119.5, 54.5), spacing=(10.0, 10.0), grid=(7, 20)),
+                    threshold=145.0, white=230.0)
+    assert orientation_checked(wide)
+    placed = map_film(_rect_film(), (7, 20), None, threshold=145.0, white=230.0)  # no geometry: nothing checked
+    assert not orientation_checked(placed)

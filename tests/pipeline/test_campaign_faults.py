@@ -169,6 +169,12 @@ def test_4_a_16_bit_scan_is_read_on_its_metadatas_scale_and_says_so(camp, tmp_pa
     assert [w for w in summary["warnings"] if "joint_01_L.png" in w and "divided by 257" in w]
     assert "divided by 257" in (out / "report.html").read_text()
     assert np.array_equal(read_films(read_campaign(camp))[1][0].contact, before)
+    # The rig's flanks image as squares: a 90° rotation cannot be seen, and the run says how it read them.
+    from identify.film import orientation_checked
+
+    assert not orientation_checked(read_films(read_campaign(camp))[1][0])
+    note = next(n for n in summary["notes"] if "cannot be told from the imprint" in n)
+    assert "joint_01_L.png" in note
 
 
 def test_6_units_mixed_across_files_without_a_manifest_label(camp, capsys):
