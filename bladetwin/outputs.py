@@ -525,7 +525,7 @@ def summary_of(res: RunResult, command: str) -> dict:
         "settings": {"n_patterns": res.options.n_patterns, "scale": res.options.scale, "seed": res.options.seed,
                      "step_pct": res.options.step_pct, "n_features": res.options.n_features,
                      "refine_max_solves": res.options.refine, "method": res.options.method,
-                     "n_components": res.options.n_components},
+                     "n_components": res.options.n_components, "rom": res.options.rom},
         "timings_s": {k: round(v, 2) for k, v in res.timings_s.items()},
         "stages": dict(res.stage_counts),
     })

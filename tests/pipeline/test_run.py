@@ -187,6 +187,7 @@ def test_refinement_improves_the_feature_match_and_is_cached(campaign, cold, cap
     r = json.loads((root / "refined" / "summary.json").read_text())
     # the CLI's default is RunOptions' (the Python API and the command line refine alike)
     assert r["settings"]["refine_max_solves"] == RunOptions().refine > 0
+    assert (r["settings"]["rom"], s["settings"]["rom"]) == ("paper", RunOptions().rom)  # the run says which ROM
     note = next(n for n in r["notes"] if "refined after the k-NN" in n)
     # Each search only accepts improvements: refined ≤ k-NN on every input (the note gives both, per input).
     pairs = re.findall(r"input ([0-9.]+) % → ([0-9.]+) %", note)
