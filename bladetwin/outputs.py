@@ -432,11 +432,12 @@ def _rom_section(res: RunResult, out: Path, rom: dict | None) -> list[dict]:
     freq = upd.frequency_correction_pct(res.delta_all)[:, modes]
     fig = _fig(plot_rom_update(freq, [f"free mode {i + 1} ({upd.free_hz[i]:.0f} Hz)" for i in modes],
                                res.validation.families), out / "rom_update.png")
-    tables = [{"file": _csv(out / "rom_cases.csv", CASE_HEADER, [["" if v is None else v for v in r]
-                                                                 for r in case_rows(rom)]),
+    def cells(rows):  # a figure that does not exist (None) is an empty cell
+        return [["" if v is None else v for v in r] for r in rows]
+
+    tables = [{"file": _csv(out / "rom_cases.csv", CASE_HEADER, cells(case_rows(rom))),
                "caption": "Cases A, B and C with the paper's ROM and with the updated ROM."},
-              {"file": _csv(out / "rom_corrections.csv", CORRECTION_HEADER,
-                            [["" if v is None else v for v in r] for r in correction_rows(res)]),
+              {"file": _csv(out / "rom_corrections.csv", CORRECTION_HEADER, cells(correction_rows(res))),
                "caption": "Each blade's in-situ corrections and its disk-one-blade residuals, both ROMs."},
               {"file": _csv(out / "rom_families.csv", FAMILY_HEADER, family_rows(res.validation.families)),
                "caption": "Family by family: frequency error, MAC and subspace correlation (principal angles)."}]

@@ -216,8 +216,7 @@ def calibrated_modes(jacobian: np.ndarray) -> np.ndarray:
 
 
 def fit_corrections(tracker: ModeTracker, pattern: ContactPattern, delta: np.ndarray, measured_hz: np.ndarray,
-                    sigma_rel: np.ndarray, *, prior_std: float = PRIOR_STD, n_iter: int = 3,
-                    start: np.ndarray | None = None) -> InSituFit:
+                    sigma_rel: np.ndarray, *, prior_std: float = PRIOR_STD, n_iter: int = 3) -> InSituFit:
     """One blade's in-situ correction ε from its disk–one-blade test (regularised Gauss–Newton in ln f).
 
     Only :func:`calibrated_modes` are corrected; the others keep ε = 0.
@@ -234,13 +233,11 @@ def fit_corrections(tracker: ModeTracker, pattern: ContactPattern, delta: np.nda
         The test's frequencies on the tracked modes (NaN: not found).
     sigma_rel : ndarray, shape (n_tracked,)
         Relative noise of each (:func:`noise_floor`).
-    start : ndarray, shape (m,), optional
-        Starting ε (default zeros).
     """
     delta = np.asarray(delta, np.float64)
     y = np.asarray(measured_hz, np.float64)
     use = np.isfinite(y) & (y > 0)
-    eps = np.zeros(delta.size) if start is None else np.asarray(start, np.float64).copy()
+    eps = np.zeros(delta.size)
     f, jac = tracked_sensitivity(tracker, pattern, delta + eps)
     free = calibrated_modes(jac)
     for _ in range(n_iter if use.any() and free.size else 0):

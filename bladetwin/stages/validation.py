@@ -154,10 +154,11 @@ def full_validation(assembly=None, *, bias: bool, answer: str = "knn", **solves:
         notes.append("Cases A and C need a reference pattern for every joint (truth/ of a virtual campaign, or "
                      "a film of every joint); this campaign has none, so they are unavailable.")
     cases = {k: case_figures(comps.get(k)) for k in ("A", "B", "B_no_bias", "C")}
+    # The paper's ROM with the run's answer: the posterior's comparisons where it answered, else the k-NN's.
+    paper, paper_solve = ("posterior_", "posterior") if answer == "posterior" else ("", "identified")
     families = {}
     if measured is not None and "updated" in full:
-        by_case = {"paper_B": ("posterior_B" if answer == "posterior" else "B", "posterior" if answer == "posterior"
-                               else "identified"), "paper_C": ("C", "reference"),
+        by_case = {"paper_B": (paper + "B", paper_solve), "paper_C": ("C", "reference"),
                    "updated_B": ("updated_B", "updated"), "updated_C": ("updated_C", "updated_reference")}
         families = {name: families_vs_measured(measured, full[solve], comps[c])
                     for name, (c, solve) in by_case.items() if c in comps}
@@ -165,7 +166,6 @@ def full_validation(assembly=None, *, bias: bool, answer: str = "knn", **solves:
     if "posterior" in full:
         cases["posterior"] = {k: case_figures(comps.get(f"posterior_{k}")) for k in ("A", "B")}
     if "updated" in full:
-        paper = "posterior_" if answer == "posterior" else ""
         cases["rom"] = {"paper": {"A": case_figures(comps.get(paper + "A")), "B": case_figures(comps.get(paper + "B")),
                                   "C": cases["C"]},
                         "updated": {k: case_figures(comps.get(f"updated_{k}")) for k in ("A", "B", "C")}}
