@@ -38,6 +38,7 @@ bench-results: $(STAMP)
 	$(BIN)/python benchmarks/ema.py --json docs/results/bench_ema.json
 	$(BIN)/python benchmarks/rom.py --json docs/results/bench_rom.json
 	$(BIN)/python benchmarks/dataset.py --json docs/results/bench_dataset.json
+	$(BIN)/python benchmarks/posterior.py --json docs/results/bench_posterior.json
 	$(MAKE) results
 
 clean:

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from identify.posterior import WIDTH_NAMES, prior_intervals, width_ratio
 from identify.validation import contact_area_fraction, contact_centroid, geometric_validation
 from rom.academic import flank_coordinates
 
@@ -51,6 +52,16 @@ def _calibration(posts: dict, reference: list, joints: list[int]) -> dict:
             "brier": float(np.mean(brier))}
 
 
+def _width_ratio(posts: dict, prior, bd) -> dict:
+    """Posterior over prior 90 % width of each flank's area and centroid, median over the joints (1: the data
+    say nothing about it)."""
+    if not posts:
+        return {}
+    widths = prior_intervals(prior, flank_coordinates(bd))
+    ratio = np.median([width_ratio(p, widths) for p in posts.values()], axis=0)
+    return dict(zip(WIDTH_NAMES, (float(r) for r in ratio), strict=True))
+
+
 def _cases(res, method: str) -> dict:
     c = res.cases
     if method == "knn":
@@ -72,6 +83,9 @@ def methods_summary(res) -> dict:
             if method == "posterior":
                 fig |= _calibration(res.posterior.get(name, {}), res.reference, joints)
             entry[name] = fig
+        if method == "posterior":  # needs no reference: every run reports it
+            entry["width_ratio"] = {name: _width_ratio(res.posterior.get(name, {}), res.posterior["prior"], res.bd)
+                                    for name in inputs}
         if method == "posterior":
             s = res.posterior["surrogate"]
             entry["surrogate"] = {"error_pct": s.error_pct.tolist(), "max_error_pct": s.max_error_pct.tolist(),
@@ -80,6 +94,9 @@ def methods_summary(res) -> dict:
             entry["prior"] = {"n_components": list(prior.n_components), "level": prior.level.tolist(),
                               "level_std": prior.level_std.tolist(), "scale": prior.scale}
         out[method] = entry
+    if res.reference is not None and joints:
+        # the majority pattern on every joint, the bar both methods must clear
+        out["baseline"] = _geometry([res.baseline_pattern] * res.campaign.n_blades, res.reference, joints, res.bd)
     return out
 
 

@@ -372,6 +372,7 @@ def report_context(out_dir: Path, path: Path, summary: dict) -> dict:
     notes = [str(n) for n in _list(summary.get("notes")) if str(n).strip()]
     if isinstance(summary.get("notes"), str):
         notes = [summary["notes"]]
+    sections = _sections(folder, summary)
     return {
         "campaign": str(summary.get("campaign") or out_dir.resolve().name),
         "command": summary.get("command"),
@@ -383,5 +384,11 @@ def report_context(out_dir: Path, path: Path, summary: dict) -> dict:
         "warnings": [str(w) for w in _list(summary.get("warnings")) if str(w).strip()],
         "timings": _timings(summary),
         "joints": _joints(summary),
-        "sections": _sections(folder, summary),
+        "sections": sections,
+        "lead": _lead(sections),
     }
+
+
+def _lead(sections: list[_Section]):
+    """The answer the summary leads with: the contact posterior's figure of every unfilmed joint, where it ran."""
+    return next((s.figures[0] for s in sections if s.anchor == "sec-posterior" and s.figures), None)

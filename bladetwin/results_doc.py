@@ -22,7 +22,7 @@ __all__ = ["Row", "lookup", "table8_rows", "contact_rows", "rom_rows", "performa
 
 #: The benchmark files ``make bench-results`` writes, by the name the tables use.
 BENCHMARKS = {"run": "bench_run.json", "rom": "bench_rom.json", "ema": "bench_ema.json",
-              "dataset": "bench_dataset.json"}
+              "dataset": "bench_dataset.json", "posterior": "bench_posterior.json"}
 _MISSING = "not measured"
 
 
@@ -82,6 +82,7 @@ def _row(label: str, docs: dict, figures: list[tuple[str, str, str]]) -> Row:
 
 
 _CASES = (("Case A", "A"), ("Case B", "B"), ("Case B, no bias correction", "B_no_bias"), ("Case C", "C"),
+          ("Case A, contact posterior", "posterior.A"), ("Case B, contact posterior", "posterior.B"),
           ("baseline (as Case A)", "baseline.A"), ("baseline (as Case B)", "baseline.B"))
 
 
@@ -100,13 +101,34 @@ def table8_rows(docs: dict) -> list[Row]:
     return rows
 
 
+_METHOD_FIGURES = (("mean area-fraction error (pp)", "area_error_pp", ".2f"),
+                   ("mean centroid distance (mm)", "centroid_distance_mm", ".2f"),
+                   ("node agreement", "node_agreement", ".3f"),
+                   ("true area inside the 90 % interval (share of flanks)", "ci90_coverage_area", ".2f"),
+                   ("median 90 % interval width (pp)", "ci90_median_width_pp", ".1f"))
+
+
 def contact_rows(docs: dict) -> list[Row]:
-    """The unfilmed joints' contact against the truth (``summary.json`` → ``geometric``), identified vs baseline."""
-    return [_row(label, docs, [("summary.json", f"geometric.{key}.identified", ".2f"),
-                               ("summary.json", f"geometric.{key}.baseline", ".2f")])
-            for label, key in (("mean area-fraction error (pp)", "area_error_pp"),
-                               ("mean centroid distance (mm)", "centroid_distance_mm"))
-            if lookup(docs.get("summary.json", {}), f"geometric.{key}") is not None]
+    """The unfilmed joints' contact against the truth (``summary.json`` → ``methods``): the contact posterior, the
+    k-NN and the baseline per input; the run's answer against the baseline (``geometric``) where the methods
+    block is absent."""
+    s = docs.get("summary.json", {})
+    if lookup(s, "methods.baseline") is None:
+        return [_row(label, docs, [("summary.json", f"geometric.{key}.identified", ".2f"),
+                                   ("summary.json", f"geometric.{key}.baseline", ".2f")])
+                for label, key, _ in _METHOD_FIGURES[:2] if lookup(s, f"geometric.{key}") is not None]
+    rows = []
+    for inp in ("experimental", "numerical"):
+        for label, key, spec in _METHOD_FIGURES:
+            # intervals are the posterior's alone: the k-NN and the baseline give none
+            methods = ("posterior",) if key.startswith("ci90") else ("posterior", "knn")
+            figures = [("summary.json", f"methods.{m}.{inp}.{key}", spec) for m in methods]
+            if not key.startswith("ci90"):
+                figures.append(("summary.json", f"methods.baseline.{key}", spec))
+            row = _row(f"{label}, {inp} input", docs, figures)
+            if any(c != _MISSING for c in row.cells):
+                rows.append(row)
+    return rows
 
 
 def rom_rows(docs: dict) -> list[Row]:
@@ -149,6 +171,9 @@ _PERFORMANCE = (
     ("cyclic CB disk build, once per disk (s); reference: FE free-disk solve", "python benchmarks/rom.py",
      "bench_rom.json", [(f"{_CYC}.seconds", ".1f"), ("results[step=fe_disk].seconds", ".1f"),
                         (f"{_CYC}.seconds / results[step=fe_disk].seconds", ".2f")]),
+    ("contact posterior of every unfilmed joint, experimental input (s); reference: the k-NN and its refinement",
+     "python benchmarks/posterior.py", "bench_posterior.json", [("posterior_s", ".0f"), ("knn_s", ".0f"),
+                                                                 ("ratio", ".1f")]),
     ("EMA, LSCF, 54 outputs × 6400 lines, 100 orders (s); reference: sdypy-EMA", "python benchmarks/ema.py",
      "bench_ema.json", [("lscf_s", ".2f"), ("sdypy_lscf_s", ".2f"), ("lscf_ratio", ".2f")]),
     ("dataset by reanalysis (s); reference: direct solves, extrapolated", "python benchmarks/dataset.py",
@@ -179,6 +204,7 @@ def _table(header: list[str], rows: list[Row], with_command: bool = False) -> li
 
 _T8_HEADER = ["Table 8", "mean \\|Δf\\| %", "mean MAC", "paired modes", "paper \\|Δf\\| %", "paper MAC"]
 _GEO_HEADER = ["unfilmed joints vs truth", "identified", "baseline"]
+_METHODS_HEADER = ["unfilmed joints vs truth", "contact posterior", "k-NN (refined)", "baseline"]
 _PERF_HEADER = ["what", "measured", "reference", "ratio", "command"]
 _ROM_HEADER = ["vs the full-assembly test", "paper's ROM \\|Δf\\| %", "paper's ROM MAC", "paired",
                "updated ROM \\|Δf\\| %", "updated ROM MAC", "paired"]
@@ -192,14 +218,20 @@ def readme_blocks(docs: dict) -> dict[str, str]:
     """The README's generated blocks by marker name: ``table8``, ``contact``, ``rom``, ``performance``."""
     s = docs.get("summary.json", {})
     run = f"`bladetwin run` on `{s.get('campaign', '?')}`"
-    t8 = [f"Figures of {run} (`docs/results/summary.json`; mean over the paired modes):", "",
+    t8 = [f"Figures of {run} (`docs/results/summary.json`; mean over the paired modes), with the paper's ROM. "
+          "Cases A and B take the k-NN's answers (the paper's method) unless marked *contact posterior*:", "",
           *_table(_T8_HEADER, _pad(table8_rows(docs), 5))]
     geo = contact_rows(docs)
-    contact = ([f"At the unfilmed joints, against the campaign's true patterns ({run}):", "",
-                *_table(_GEO_HEADER, geo)] if geo else ["No true patterns in this campaign: no contact check."])
+    header = _METHODS_HEADER if lookup(s, "methods.baseline") is not None else _GEO_HEADER
+    contact = ([f"At the unfilmed joints, against the campaign's true patterns ({run}; the numerical input is the "
+                "ROM's own d1b frequencies with the true patterns, the experimental input the measured ones):", "",
+                *_table(header, _pad(geo, len(header) - 1))] if geo
+               else ["No true patterns in this campaign: no contact check."])
     rom = rom_rows(docs)
+    answer = "the contact posterior's" if lookup(s, "methods.posterior") is not None else "the k-NN's"
     rom_text = ([f"The paper's ROM (Eq. 19, rigid contact ties) and the updated ROM (in-situ corrections and "
-                 f"contact stiffness fitted on the disk–one-blade tests only), {run}:", "",
+                 f"contact stiffness fitted on the disk–one-blade tests only), {run}, with the run's answer "
+                 f"({answer}) at the unfilmed joints:", "",
                  *_table(_ROM_HEADER, rom)] if rom else ["The updated ROM did not run (`--rom paper`)."])
     perf = [f"{_machine(docs)}; each figure from the command beside it, with the reference it measures in the "
             "same run.", "", *_table(_PERF_HEADER, performance_rows(docs), with_command=True)]

@@ -25,7 +25,7 @@ import numpy as np
 from .errors import IdentifyError
 from .sampler import PatternSampler, non_collinear
 
-__all__ = ["ContactPrior", "contact_prior"]
+__all__ = ["ContactPrior", "contact_prior", "held_out_projections"]
 
 #: Default share of the films' variance the prior's components keep (issue 32: "enough for 95 %").
 DEFAULT_VARIANCE = 0.95
@@ -168,3 +168,40 @@ def contact_prior(sampler_L: PatternSampler, sampler_R: PatternSampler, films_L:
         level[i] = levels.mean()
         level_std[i] = scale * _level_spread(s, levels, [float(np.mean(m.contact)) for m in f])
     return ContactPrior(mean, basis, ks, level, level_std, tuple(samplers[0].grid_shape_), float(scale))
+
+
+def held_out_projections(films_L: Sequence, films_R: Sequence, n_components: tuple[int, int]) -> np.ndarray:
+    """Each film's map as the prior's family would draw it without that film: its contact grid, leave-one-out.
+
+    For film i the PCA of Eqs. 26–29 is fitted on the other films, film i's map is projected on its first
+    ``n_components`` components (capped at the n − 2 the others support) and thresholded at film i's own level.
+    What this grid misses of film i's contact is what a joint's true pattern can lack in the prior's family; the
+    posterior turns it into a frequency error (:func:`bladetwin.stages.posterior.representation_error`).
+
+    Parameters
+    ----------
+    films_L, films_R : sequence of identify.FilmMap
+        The known films, one per joint, ≥ 3 per side.
+    n_components : (int, int)
+        The prior's k_L, k_R.
+
+    Returns
+    -------
+    ndarray of bool, shape (n_films, 2, rows, cols)
+    """
+    sides = (list(films_L), list(films_R))
+    n = len(sides[0])
+    if n < 3 or len(sides[1]) != n:
+        raise IdentifyError(f"held-out projections need ≥ 3 films per side, one per joint; got {n} and "
+                            f"{len(sides[1])}")
+    out = []
+    for i in range(n):
+        grids = []
+        for films, k in zip(sides, n_components, strict=True):
+            rest = [f for m, f in enumerate(films) if m != i]
+            s = PatternSampler(threshold=float(np.mean([f.level for f in rest]))).fit(rest)
+            kappa = s.transform([films[i].gray])
+            kappa[:, min(int(k), n - 2):] = 0.0  # the prior's components only
+            grids.append(s.inverse_transform(kappa)[0] > films[i].level)
+        out.append(grids)
+    return np.array(out, bool)

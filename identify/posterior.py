@@ -32,7 +32,7 @@ from .contact_surrogate import ContactSurrogate
 from .errors import IdentifyError
 from .validation import contact_area_fraction, contact_centroid
 
-__all__ = ["JointPosterior", "joint_posterior", "noise_model"]
+__all__ = ["JointPosterior", "joint_posterior", "noise_model", "prior_intervals", "width_ratio"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -77,8 +77,8 @@ class JointPosterior:
     acceptance: float
 
 
-def noise_model(model_spread, surrogate_error_pct, ema_std_rel=None) -> np.ndarray:
-    """Relative noise per mode, shape (n_modes,): model error, surrogate error and EMA std in quadrature.
+def noise_model(model_spread, surrogate_error_pct, ema_std_rel=None, representation_rel=None) -> np.ndarray:
+    """Relative noise per mode, shape (n_modes,): model, surrogate, EMA and family errors in quadrature.
 
     Parameters
     ----------
@@ -88,10 +88,15 @@ def noise_model(model_spread, surrogate_error_pct, ema_std_rel=None) -> np.ndarr
         :attr:`ContactSurrogate.error_pct`.
     ema_std_rel : array_like, shape (n_modes,), optional
         The EMA's frequency standard deviation over its frequency (NaN: unknown, taken as 0).
+    representation_rel : array_like, shape (n_modes,), optional
+        How far the prior's family misses a real joint in frequency: the RMS relative error of the films'
+        held-out projections (:func:`identify.contact_prior.held_out_projections`). Without it the numerical
+        input, which has no model error, trusts the family as if it held the truth.
     """
     s = np.asarray(model_spread, np.float64) ** 2 + (np.asarray(surrogate_error_pct, np.float64) / 100) ** 2
-    if ema_std_rel is not None:
-        s = s + np.nan_to_num(np.asarray(ema_std_rel, np.float64)) ** 2
+    for extra in (ema_std_rel, representation_rel):
+        if extra is not None:
+            s = s + np.nan_to_num(np.asarray(extra, np.float64)) ** 2
     return np.sqrt(s)
 
 
@@ -179,3 +184,30 @@ def _summarise(prior, surrogate, chain, logp, coordinates, logr, acceptance) -> 
         centroid_map=cen[best], centroid_ci90=np.moveaxis(np.nanpercentile(cen, q, axis=0), 0, -1),
         frequencies_hz=freq[best], frequencies_hz_ci90=np.percentile(freq, q, axis=0).T,
         n_samples=len(chain), acceptance=acceptance)
+
+
+def _intervals(grids: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """90 % interval widths of [area L, area R, ū L, v̄ L, ū R, v̄ R] over grids (n, 2, rows, cols), shape (6,)."""
+    area = contact_area_fraction(grids)
+    with np.errstate(invalid="ignore"):
+        cen = contact_centroid(grids, u, v).reshape(len(grids), 4)
+    q = np.c_[np.percentile(area, (5, 95), axis=0), np.nanpercentile(cen, (5, 95), axis=0)]
+    return q[1] - q[0]
+
+
+#: The quantities :func:`width_ratio` compares, in its order (area in %, centroid coordinates in m).
+WIDTH_NAMES = ("area L", "area R", "centroid u L", "centroid v L", "centroid u R", "centroid v R")
+
+
+def prior_intervals(prior: ContactPrior, coordinates, *, n: int = 4000, seed: int = 0) -> np.ndarray:
+    """90 % interval widths of each flank's area fraction (%) and centroid (m) under the prior, shape (6,) in the
+    order of :data:`WIDTH_NAMES`, from ``n`` seeded prior draws."""
+    u, v = (np.asarray(a, np.float64) for a in coordinates)
+    return _intervals(prior.grids(prior.draw(n, np.random.default_rng(seed))), u, v)
+
+
+def width_ratio(post: JointPosterior, prior_widths: np.ndarray) -> np.ndarray:
+    """Posterior over prior 90 % width of each quantity of :data:`WIDTH_NAMES`, shape (6,): 1 where the data say
+    nothing about it, near 0 where they pin it down (the identifiability study of docs/identify.md)."""
+    post_w = np.r_[np.diff(post.area_pct_ci90, axis=1).ravel(), np.diff(post.centroid_ci90, axis=2).ravel()]
+    return post_w / np.asarray(prior_widths, np.float64)

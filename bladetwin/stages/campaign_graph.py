@@ -69,7 +69,7 @@ class RunOptions:
     dask_workers: int | None = None
     scheduler: str | None = None
     refine: int = 40
-    method: str = "knn"
+    method: str = "both"
     n_components: int | None = None
     rom: str = "updated"
 
@@ -225,6 +225,9 @@ def _posterior_nodes(p: Pipeline, campaign, opts: RunOptions) -> None:
                                      priority=80, label=f"surrogate solves {k + 1}/{posterior.N_PARTS}")).name
              for k in range(posterior.N_PARTS)}
     p.add(Node("posterior/surrogate", posterior.surrogate_node, parts, where="parent"))
+    p.add(Node("posterior/representation", posterior.representation_error, {**rom, "films": "films",
+                                                                           "prior": "posterior/prior"},
+               priority=80, label="the prior family's error on the films"))
     unfilmed = [t.index for t in campaign.of_type("d1b") if t.index not in campaign.known_joints]
     p.add(Node("posterior/factors", posterior.delta_factors, {**rom, "baseline": "baseline", "delta_all": "delta_all"},
                {"joints": [int(j) for j in unfilmed]}, priority=80, label="δ factors of the posterior"))
@@ -236,8 +239,8 @@ def _posterior_nodes(p: Pipeline, campaign, opts: RunOptions) -> None:
                 f"posterior/{name}/joint_{j:02d}", posterior.posterior_joint,
                 {**rom, "features": "features", "prior": "posterior/prior", "surrogate": "posterior/surrogate",
                  "delta_all": "delta_all", "factors": "posterior/factors", "bd": "fe_model",
-                 "reference": "reference", "fit": f"ema/d1b_{j:02d}"},
-                {"input": name, "joint": int(j), "seed": opts.seed}, priority=38 - 10 * k,
+                 "reference": "reference", "fit": f"ema/d1b_{j:02d}", "representation": "posterior/representation"},
+                {"input": name, "joint": int(j), "seed": opts.seed}, version=2, priority=38 - 10 * k,
                 label=f"joint {j} posterior ({name} input)")).name
         p.add(Node(f"patterns/posterior_{name}", posterior.posterior_patterns,
                    {"known": "known", "baseline": "baseline", **posts}, {"n_blades": campaign.n_blades},

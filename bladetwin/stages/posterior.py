@@ -6,7 +6,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from identify.contact_prior import ContactPrior, contact_prior
+from identify.contact_prior import ContactPrior, contact_prior, held_out_projections
 from identify.contact_surrogate import ContactSurrogate, fit_surrogate
 from identify.dataset import Dataset
 from identify.posterior import JointPosterior, joint_posterior, noise_model
@@ -17,7 +17,8 @@ from .bias import Features, tracker_for
 from .patterns import family_samplers
 
 __all__ = ["SurrogateSolves", "N_SOLVES", "N_PARTS", "prior_node", "surrogate_solves", "surrogate_node",
-           "ema_std_rel", "delta_factors", "posterior_joint", "posterior_patterns", "answer_pattern"]
+           "representation_error", "ema_std_rel", "delta_factors", "posterior_joint", "posterior_patterns",
+           "answer_pattern"]
 
 #: Direct d1b solves that train and check the surrogate, split in parts so both workers share them.
 N_SOLVES, N_PARTS = 400, 4
@@ -57,6 +58,24 @@ def surrogate_node(**parts: SurrogateSolves) -> ContactSurrogate:
                          np.concatenate([p.frequencies_hz for p in ordered]))
 
 
+def representation_error(disk, blade, dataset: Dataset, films, prior: ContactPrior) -> np.ndarray:
+    """The node: RMS relative frequency error per tracked mode of the prior's family on the filmed joints, shape
+    (n_modes,) (zeros with fewer than 3 films: no held-out projection).
+
+    Each film's held-out projection (:func:`identify.contact_prior.held_out_projections`) and the film itself are
+    solved directly at δ = 0; the spread of their ratio is how far the family can miss a joint it never saw.
+    """
+    tracker = tracker_for(disk, blade, dataset)
+    if len(films) < 3:
+        return np.zeros(tracker.n_modes)
+    proj = held_out_projections([a for a, _ in films.values()], [b for _, b in films.values()], prior.n_components)
+    rel = [tracker.track(ContactPattern(g[0], g[1])).frequencies_hz
+           / tracker.track(ContactPattern(a.contact, b.contact)).frequencies_hz - 1
+           # a projection that empties a flank is no contact pattern: it says nothing about frequency
+           for (a, b), g in zip(films.values(), proj, strict=True) if prior.valid(g[None])[0]]
+    return np.sqrt(np.mean(np.square(rel), axis=0)) if rel else np.zeros(tracker.n_modes)
+
+
 def ema_std_rel(fit, measured_hz: np.ndarray) -> np.ndarray:
     """The EMA's relative frequency std of each matched mode (NaN where unknown or not found).
 
@@ -86,28 +105,30 @@ def delta_factors(disk, blade, dataset: Dataset, baseline: ContactPattern, delta
     return out
 
 
-def _target(features: Features, tracker, reference, delta, joint: int, input: str, fit, error_pct):
+def _target(features: Features, tracker, reference, delta, joint: int, input: str, fit, error_pct, family_rel):
     """(target frequencies (Hz), relative noise) of one joint for one input."""
     n = features.bias.size
     if input == "numerical":
-        return tracker.track(reference[joint - 1], delta).frequencies_hz, noise_model(np.zeros(n), error_pct)
+        return (tracker.track(reference[joint - 1], delta).frequencies_hz,
+                noise_model(np.zeros(n), error_pct, representation_rel=family_rel))
     k = list(int(j) for j in features.joints).index(joint)
     y = features.measured_hz[k]
     if input == "experimental":
         y = y / (1 + features.bias)
-    return y, noise_model(features.spread, error_pct, ema_std_rel(fit, features.measured_hz[k]))
+    return y, noise_model(features.spread, error_pct, ema_std_rel(fit, features.measured_hz[k]), family_rel)
 
 
 def posterior_joint(disk, blade, dataset: Dataset, features: Features, prior: ContactPrior,
                     surrogate: ContactSurrogate, delta_all: np.ndarray, factors: np.ndarray, bd, reference, fit=None,
-                    *, input: str, joint: int, seed: int) -> JointPosterior | None:
+                    representation=None, *, input: str, joint: int, seed: int) -> JointPosterior | None:
     """The node: one joint's posterior for one input (:func:`identify.posterior.joint_posterior`).
 
-    ``factors`` is :func:`delta_factors`'s output. Returns ``None`` where the joint's test found none of the
-    tracked modes.
+    ``factors`` is :func:`delta_factors`'s output, ``representation`` :func:`representation_error`'s. Returns
+    ``None`` where the joint's test found none of the tracked modes.
     """
     tracker = tracker_for(disk, blade, dataset)
-    y, sigma = _target(features, tracker, reference, delta_all[joint - 1], joint, input, fit, surrogate.error_pct)
+    y, sigma = _target(features, tracker, reference, delta_all[joint - 1], joint, input, fit, surrogate.error_pct,
+                       representation)
     if not np.any(np.isfinite(y)):
         return None
     return joint_posterior(prior, surrogate, y, sigma, flank_coordinates(bd), factor=factors[joint - 1],

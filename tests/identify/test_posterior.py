@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 
 from identify import IdentifyError, PatternSampler
-from identify.contact_prior import contact_prior
+from identify.contact_prior import contact_prior, held_out_projections
 from identify.contact_surrogate import ContactSurrogate, fit_surrogate
-from identify.posterior import joint_posterior, noise_model
+from identify.posterior import WIDTH_NAMES, joint_posterior, noise_model, prior_intervals, width_ratio
 from identify.validation import contact_area_fraction
 
 GRID = (5, 9)
@@ -114,3 +114,44 @@ def test_same_seed_same_answer_and_bad_targets_refused():
         joint_posterior(prior, model, np.full(4, np.nan), s, _uv())
     with pytest.raises(IdentifyError, match="n_walkers"):
         joint_posterior(prior, model, y, s, _uv(), n_walkers=3)
+
+
+def test_width_ratio_says_which_flank_the_data_pin_down():
+    """A model that only feels the left flank narrows the left flank's area interval and leaves the right's at
+    the prior's width."""
+    rng = np.random.default_rng(11)
+    films = _low_rank_films(rng, n=6)
+    for f in films:
+        f.contact = f.gray > f.level
+    s = PatternSampler(threshold=0.45).fit([f.gray for f in films])
+    prior = contact_prior(s, s, films, films)
+    model = _linear_model(prior, rng, n_modes=6)
+    n_side = np.prod(GRID)
+    model = ContactSurrogate(np.r_[model.coef[:n_side] * 5, np.zeros_like(model.coef[n_side:])], model.intercept,
+                             1.0, np.zeros(6), np.zeros(6), 1, 1)
+    y = model.predict_hz(prior.grids(prior.draw(1, rng)))[0]
+    post = joint_posterior(prior, model, y, np.full(6, 2e-4), _uv(), n_walkers=24, n_steps=1500, seed=1)
+    ratio = dict(zip(WIDTH_NAMES, width_ratio(post, prior_intervals(prior, _uv())), strict=True))
+    assert ratio["area L"] < 0.7 and 0.6 < ratio["area R"] < 1.4, ratio
+
+
+def _low_rank_films(rng, n=5):
+    """Maps of one affine family of two smooth directions, each read at its own level."""
+    r, c = np.meshgrid(np.linspace(-1, 1, GRID[0]), np.linspace(-1, 1, GRID[1]), indexing="ij")
+    w = rng.normal(0, 1, (n, 2))
+    maps = 0.45 + 0.1 * r + w[:, :1, None] * 0.1 * np.cos(np.pi * c) + w[:, 1:, None] * 0.1 * r * c
+    return [SimpleNamespace(gray=m, level=0.45 + rng.normal(0, 0.02)) for m in maps]
+
+
+def test_held_out_projections_restore_a_family_member_and_miss_a_film_outside_it():
+    films = _low_rank_films(np.random.default_rng(5))
+    proj = held_out_projections(films, films, (2, 2))
+    assert proj.shape == (5, 2, *GRID)
+    for f, g in zip(films, proj, strict=True):  # any four films span the family: each film is restored
+        assert np.array_equal(g[0], f.gray > f.level) and np.array_equal(g[1], f.gray > f.level)
+    # a film with a contact patch no other film has is not restored: the family cannot draw it
+    films[2].gray = films[2].gray.copy()
+    films[2].gray[:2, :3] = 0.95
+    assert not np.array_equal(held_out_projections(films, films, (2, 2))[2, 0], films[2].gray > films[2].level)
+    with pytest.raises(IdentifyError, match="≥ 3 films"):
+        held_out_projections(films[:2], films[:2], (1, 1))

@@ -161,7 +161,7 @@ def test_4_a_16_bit_scan_is_read_on_its_metadatas_scale_and_says_so(camp, tmp_pa
     Image.fromarray(image.astype(np.uint16) * 257).save(path)
     capfd.readouterr()
     out = tmp_path / "out"
-    assert main(["run", str(camp), "--refine", "0", "--n", "4", "--rom", "paper", "--out", str(out),
+    assert main(["run", str(camp), "--refine", "0", "--n", "4", "--rom", "paper", "--method", "knn", "--out", str(out),
                  "--cache-dir", str(tmp_path / "store"), "--quiet"]) == 0
     err = [line for line in capfd.readouterr().err.splitlines() if "joint_01_L.png" in line]
     assert len(err) == 1 and err[0].startswith("bladetwin: warning: film ") and "16-bit" in err[0], err
@@ -191,7 +191,7 @@ def test_7_a_joint_without_its_d1b_test_gets_a_note(camp, tmp_path, capsys):
     doc["tests"] = [t for t in doc["tests"] if not (t["type"] == "d1b" and t["joint"] == 2)]
     _write_manifest(camp, doc)
     out = tmp_path / "out"
-    assert main(["run", str(camp), "--refine", "0", "--n", "4", "--rom", "paper", "--out", str(out),
+    assert main(["run", str(camp), "--refine", "0", "--n", "4", "--rom", "paper", "--method", "knn", "--out", str(out),
                  "--cache-dir", str(tmp_path / "store")]) == 0
     summary = json.loads((out / "summary.json").read_text())
     assert any("Joints [2]: no disk-one-blade test" in n for n in summary["notes"])

@@ -15,7 +15,7 @@ from bladetwin.cli import main
 
 SMALL = ["--level", "coarse", "--blades", "4", "--grid", "3x7", "--known", "1,3"]
 # --rom paper: the ROM update is tested in test_run.py; here it would only add time.
-SETTINGS = ["--refine", "6", "--n", "5", "--rom", "paper"]
+SETTINGS = ["--refine", "6", "--n", "5", "--rom", "paper", "--method", "knn"]
 
 pytestmark = pytest.mark.skipif(sys.platform == "win32", reason="POSIX signals")
 

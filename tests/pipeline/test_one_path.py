@@ -20,7 +20,7 @@ from rom.pattern_io import load_patterns
 SMALL = ["--level", "coarse", "--blades", "4", "--grid", "3x7", "--known", "1,3"]
 #: The settings every command below shares (the stage commands' defaults are the run's; these only shorten it).
 # --rom paper: the ROM update is tested in test_run.py; here it would only add time.
-SETTINGS = ["--refine", "8", "--n", "6", "--rom", "paper"]
+SETTINGS = ["--refine", "8", "--n", "6", "--rom", "paper", "--method", "knn"]
 
 
 @pytest.fixture(scope="module")

@@ -26,11 +26,11 @@ from identify.validation import contact_area_fraction
 from rom.pattern_io import load_patterns
 
 SMALL = ["--level", "coarse", "--blades", "6", "--grid", "3x7", "--known", "3,4"]
-#: The paper's k-NN alone: every test but the refinement's runs without it, so the module stays short; the
-#: refinement test runs the default (refinement on).
-KNN_ONLY = ["--refine", "0"]
-#: Runs that check something else than the ROM update skip it (it only adds time there).
-PAPER_ROM = ["--rom", "paper"]
+#: The paper's k-NN alone (no refinement, no posterior): every test but the refinement's and the posterior's runs
+#: it, so the module stays short; those two run their method explicitly.
+KNN_ONLY = ["--refine", "0", "--method", "knn"]
+#: Runs that check something else than the ROM update or the posterior skip both (they only add time there).
+PAPER_ROM = ["--rom", "paper", "--method", "knn"]
 
 
 @pytest.fixture(scope="module")
@@ -230,10 +230,15 @@ def test_posterior_runs_without_truth_and_answers_every_unfilmed_joint(campaign,
     post = s["methods"]["posterior"]
     assert post["cases"]["B"]["n_modes"] > 0 and post["cases"]["A"] is None
     assert "experimental" not in post  # no reference patterns: no geometry figures
+    ratio = post["width_ratio"]["experimental"]  # but what the data pin down needs none
+    assert set(ratio) == {"area L", "area R", "centroid u L", "centroid v L", "centroid u R", "centroid v R"}
+    assert all(0 < r < 2 for r in ratio.values()), ratio
     rows = list(csv.reader((out / "posterior_contact.csv").read_text().splitlines()))[1:]
     assert sorted(int(r[0]) for r in rows) == sorted(j["joint"] for j in s["joints"] if j["joint"] not in known)
     assert all(r[7] == r[8] == "" for r in rows)  # reference areas blank, not "None"
-    assert "Contact posterior" in (out / "report.html").read_text()
+    html = (out / "report.html").read_text()
+    assert "Contact posterior" in html
+    assert html.index("The answer.") < html.index("Full-assembly validation")  # the summary leads with it
 
 
 def test_updated_rom_beats_the_papers_on_the_measured_assembly(cold):
@@ -266,7 +271,7 @@ def test_the_rom_update_never_reads_the_assembly_test(campaign, cold, tmp_path):
     shutil.copytree(camp, lab)
     _edit_manifest(lab, lambda doc: doc.update(tests=[t for t in doc["tests"] if t["type"] != "assembly"]))
     names = ["rom_update/stiffness", "rom_update/answer"]
-    opts = dict(refine=0, workers=1)
+    opts = dict(refine=0, workers=1, method="knn")
     got, _ = run_nodes(read_campaign(lab), names, RunOptions(cache_dir=tmp_path / "cache", **opts))
     ref, _ = run_nodes(read_campaign(camp), names, RunOptions(cache_dir=root / "cache", **opts))
     # The fresh store rebuilds the models, whose last bits differ with BLAS threading (the reference store was

@@ -72,7 +72,7 @@ def runs(campaigns):
             # and everything after are not: the imported run reduces the imported matrices.
             ema_fits = ("nodes", "fit_test")
             shutil.copytree(root.joinpath("cache_native", *ema_fits), root.joinpath("cache_imported", *ema_fits))
-        assert main(["run", str(camp), "--refine", "0", "--rom", "paper", "--out", str(o),
+        assert main(["run", str(camp), "--refine", "0", "--rom", "paper", "--method", "knn", "--out", str(o),
                      "--cache-dir", str(root / f"cache_{name}"), "--quiet"]) == 0
         out[name] = o, json.loads((o / "summary.json").read_text())
     return out
