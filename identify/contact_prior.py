@@ -23,7 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .errors import IdentifyError
-from .sampler import PatternSampler, non_collinear
+from .sampler import PatternSampler, non_collinear_batch
 
 __all__ = ["ContactPrior", "contact_prior", "held_out_projections"]
 
@@ -85,8 +85,7 @@ class ContactPrior:
         g = np.asarray(grids, bool).reshape(-1, 2, *self.grid_shape)
         n_on = g.sum(axis=(2, 3))
         ok = np.all((n_on > 0) & (n_on < np.prod(self.grid_shape)), axis=1)
-        return np.array([bool(o) and non_collinear(p[0]) and non_collinear(p[1]) for o, p in zip(ok, g,
-                                                                                                  strict=True)])
+        return ok & non_collinear_batch(g[:, 0]) & non_collinear_batch(g[:, 1])
 
     def draw(self, n: int, rng: np.random.Generator, widen: float = 1.0) -> np.ndarray:
         """``n`` parameter vectors drawn from the prior (widened by ``widen``) that give valid grids, (n, n_dim)."""

@@ -89,8 +89,25 @@ def draw_coefficients(
 
 def non_collinear(grid: np.ndarray) -> bool:
     """At least 3 contacting nodes, not all on one line."""
-    pts = np.argwhere(grid)
-    return len(pts) >= 3 and np.linalg.matrix_rank(pts[1:] - pts[0]) >= 2
+    return bool(non_collinear_batch(np.asarray(grid, bool)[None])[0])
+
+
+def non_collinear_batch(grids: np.ndarray) -> np.ndarray:
+    """:func:`non_collinear` of each grid of ``grids`` (n, rows, cols), shape (n,), in exact integer arithmetic.
+
+    The contacting nodes are all on one line exactly when each one's cross product with the line through the first
+    and the last of them (row-major order) is 0. Vectorised because the contact posterior asks it of every
+    proposal: one rank computation per grid took 70 % of a joint's sampling.
+    """
+    g = np.asarray(grids, bool)
+    n, rows, cols = g.shape
+    flat = g.reshape(n, -1)
+    first = np.argmax(flat, axis=1)
+    last = rows * cols - 1 - np.argmax(flat[:, ::-1], axis=1)
+    r, c = np.divmod(np.arange(rows * cols), cols)
+    r0, c0, r1, c1 = (a[:, None] for a in (first // cols, first % cols, last // cols, last % cols))
+    cross = (r[None] - r0) * (c1 - c0) - (c[None] - c0) * (r1 - r0)
+    return (flat.sum(axis=1) >= 3) & np.any(flat & (cross != 0), axis=1)
 
 
 def _check_maps(X, grid) -> tuple[np.ndarray, tuple[int, int]]:
@@ -308,7 +325,7 @@ class PatternSampler(BaseEstimator):
         a = c.mean(axis=(1, 2))
         lo, hi = self.fraction_range_
         ok = (a >= lo) & (a <= hi) & c.any(axis=(1, 2)) & ~c.all(axis=(1, 2))
-        return ok & np.array([non_collinear(x) for x in c], dtype=bool)
+        return ok & non_collinear_batch(c)
 
     def sample(self, n_patterns: int | None = None) -> SideSample:
         """Draw synthetic patterns (Eqs. 31–32), redrawing those outside the measured family.

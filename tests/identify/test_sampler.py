@@ -226,3 +226,24 @@ def test_lab_films_to_synthetic_patterns(coarse_bd):
     # Synthetic patterns resemble the known ones: the mean contact map stays close to the known mean.
     known = np.mean([m.gray > levels[0] for m in maps["L"]], axis=0)
     assert np.abs(sp.L.mean(axis=0) - known).mean() < 0.25
+
+
+def test_non_collinear_batch_agrees_with_the_rank_of_the_contacting_nodes():
+    from identify.sampler import non_collinear_batch
+
+    rng = np.random.default_rng(4)
+    grids = rng.random((400, 5, 7)) < rng.choice([0.03, 0.08, 0.5], (400, 1, 1))  # many with 0–4 nodes
+    line = np.zeros((4, 5, 7), bool)
+    line[0, 2, 1:6] = True  # a row
+    line[1, :, 3] = True  # a column
+    line[2, [0, 1, 2, 3, 4], [0, 1, 2, 3, 4]] = True  # a diagonal
+    line[3, [0, 2, 4], [0, 3, 6]] = True  # a slope of 3/2 through grid points
+    grids = np.concatenate([grids, line])
+
+    def by_rank(g):  # the definition, one grid at a time: ≥ 3 nodes whose offsets span the plane
+        pts = np.argwhere(g)
+        return len(pts) >= 3 and np.linalg.matrix_rank(pts[1:] - pts[0]) >= 2
+
+    expected = np.array([by_rank(g) for g in grids])
+    assert np.array_equal(non_collinear_batch(grids), expected)
+    assert not expected[-4:].any() and expected.any() and not expected.all()
