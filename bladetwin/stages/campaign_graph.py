@@ -215,6 +215,13 @@ def _identify_nodes(p: Pipeline, campaign, opts: RunOptions) -> None:
 
 
 def _posterior_nodes(p: Pipeline, campaign, opts: RunOptions) -> None:
+    from ..campaign import CampaignError
+
+    n_known = len(campaign.known_joints)
+    if opts.n_components is not None and opts.n_components > n_known - 1:
+        # refused before any computation: the prior's PCA has at most one component fewer than the films
+        raise CampaignError(f"--components {opts.n_components}: the {n_known} filmed joints of {campaign.name} "
+                            f"support at most {max(n_known - 1, 0)} per flank")
     rom = {"disk": "disk_cb", "blade": "blade_rubin", "dataset": "dataset"}
     p.add(Node("posterior/prior", posterior.prior_node, {"films": "films"},
                {"scale": opts.scale, "n_components": opts.n_components}, where="parent"))

@@ -305,3 +305,20 @@ def test_12_a_negative_seed_names_its_flag(camp, tmp_path, capsys, argv):
     assert main([a.format(camp=camp, tmp=tmp_path) for a in argv]) == 2
     err = capsys.readouterr().err.strip()
     assert "--seed -1" in err and "Traceback" not in err
+
+
+@pytest.mark.parametrize("argv, needle", [(["--components", "0"], "--components 0"),
+                                          (["--components", "99"], "--components 99"),
+                                          (["--scale", "-1"], "--scale -1"),
+                                          (["--method", "bayes"], "--method")])
+def test_12_bad_posterior_settings_are_refused_before_any_computation(camp, tmp_path, capsys, argv, needle):
+    capsys.readouterr()
+    try:
+        code = main(["run", str(camp), *argv, "--out", str(tmp_path / "o"), "--cache-dir", str(tmp_path / "s")])
+    except SystemExit as exc:  # argparse refuses an unknown choice itself, with its usage line
+        code = exc.code
+    assert code == 2
+    err = capsys.readouterr().err.strip()
+    errors = [line for line in err.splitlines() if "error:" in line]
+    assert len(errors) == 1 and needle in errors[0] and "Traceback" not in err, err
+    assert not (tmp_path / "s" / "nodes").exists()  # nothing computed
