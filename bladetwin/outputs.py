@@ -389,6 +389,12 @@ def _posterior_section(res: RunResult, out: Path, methods: dict) -> list[dict]:
                     f"{100 * exp['node_agreement']:.1f} %; the true area lies in the 90 % interval on "
                     f"{100 * exp.get('ci90_coverage_area', float('nan')):.0f} % of flanks (median width "
                     f"{exp.get('ci90_median_width_pp', float('nan')):.1f} pp).")
+    ratio = (m.get("width_ratio") or {}).get("experimental")
+    if ratio:
+        text.append("What the data pin down: each 90 % interval's width over the prior's (median over the joints; 1 "
+                    "means the test says nothing about it): " + ", ".join(f"{k} {v:.2f}" for k, v in ratio.items())
+                    + f". The test narrows {min(ratio, key=ratio.get)} most and {max(ratio, key=ratio.get)} least; "
+                      "what it leaves near 1 comes from the films' family (the prior).")
     return [{"id": "posterior", "title": "Contact posterior: every unfilmed joint with its confidence",
              "text": text,
              "figures": [{"file": fig, "caption": "Posterior probability of contact at each node (left pair), beside "

@@ -237,7 +237,7 @@ def test_posterior_runs_without_truth_and_answers_every_unfilmed_joint(campaign,
     assert sorted(int(r[0]) for r in rows) == sorted(j["joint"] for j in s["joints"] if j["joint"] not in known)
     assert all(r[7] == r[8] == "" for r in rows)  # reference areas blank, not "None"
     html = (out / "report.html").read_text()
-    assert "Contact posterior" in html
+    assert "Contact posterior" in html and "What the data pin down" in html
     assert html.index("The answer.") < html.index("Full-assembly validation")  # the summary leads with it
 
 
