@@ -56,9 +56,12 @@ def check_dof(label: Sequence[int], what: str = "DOF label") -> DOF:
     -------
     tuple of (int, int)
     """
-    if len(label) != 2:
+    if isinstance(label, str) or len(label) != 2:
         raise ValueError(f"{what} {label!r}: expected (node_id, direction)")
-    node, direction = int(label[0]), int(label[1])
+    try:
+        node, direction = int(label[0]), int(label[1])
+    except (TypeError, ValueError):
+        raise ValueError(f"{what} {label!r}: expected (node_id, direction) as two integers") from None
     if not -6 <= direction <= 6:
         raise ValueError(f"{what} {label!r}: direction {direction} outside -6..6")
     return (node, direction)

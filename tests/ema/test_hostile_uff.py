@@ -452,3 +452,10 @@ def test_order_the_memory_cannot_hold_is_refused_before_allocating():
     with pytest.raises(EMAError, match="lower the model order"):
         check_workspace(1e30, "test")
     check_workspace(1.0, "test")
+
+
+@pytest.mark.parametrize("label", ["p0", ("a", 3), (1, None)])
+def test_a_dof_label_that_is_not_two_integers_is_named(label):
+    freq = np.linspace(1.0, 10.0, 10)
+    with pytest.raises(ValueError, match=r"output DOF .*expected \(node_id, direction\)"):
+        FRFSet(freq, np.ones((1, 1, 10), complex), [label], [(1, 3)])
