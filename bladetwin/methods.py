@@ -52,12 +52,11 @@ def _calibration(posts: dict, reference: list, joints: list[int]) -> dict:
             "brier": float(np.mean(brier))}
 
 
-def _width_ratio(posts: dict, prior, bd) -> dict:
-    """Posterior over prior 90 % width of each flank's area and centroid, median over the joints (1: the data
-    say nothing about it)."""
+def _width_ratio(posts: dict, widths: np.ndarray) -> dict:
+    """Posterior over prior 90 % width (``widths``: :func:`identify.posterior.prior_intervals`) of each flank's area
+    and centroid, median over the joints (1: the data say nothing about it)."""
     if not posts:
         return {}
-    widths = prior_intervals(prior, flank_coordinates(bd))
     ratio = np.median([width_ratio(p, widths) for p in posts.values()], axis=0)
     return dict(zip(WIDTH_NAMES, (float(r) for r in ratio), strict=True))
 
@@ -83,10 +82,10 @@ def methods_summary(res) -> dict:
             if method == "posterior":
                 fig |= _calibration(res.posterior.get(name, {}), res.reference, joints)
             entry[name] = fig
-        if method == "posterior":  # needs no reference: every run reports it
-            entry["width_ratio"] = {name: _width_ratio(res.posterior.get(name, {}), res.posterior["prior"], res.bd)
-                                    for name in inputs}
         if method == "posterior":
+            # what the data pin down needs no reference: every run reports it
+            widths = prior_intervals(res.posterior["prior"], flank_coordinates(res.bd))
+            entry["width_ratio"] = {name: _width_ratio(res.posterior.get(name, {}), widths) for name in inputs}
             s = res.posterior["surrogate"]
             entry["surrogate"] = {"error_pct": s.error_pct.tolist(), "max_error_pct": s.max_error_pct.tolist(),
                                   "n_train": s.n_train, "n_test": s.n_test}

@@ -389,6 +389,6 @@ def report_context(out_dir: Path, path: Path, summary: dict) -> dict:
     }
 
 
-def _lead(sections: list[_Section]):
+def _lead(sections: list[_Section]) -> _Figure | None:
     """The answer the summary leads with: the contact posterior's figure of every unfilmed joint, where it ran."""
     return next((s.figures[0] for s in sections if s.anchor == "sec-posterior" and s.figures), None)
