@@ -30,7 +30,7 @@ from identify.plots import (
 from identify.validation import contact_area_fraction, geometric_validation
 from rom.pattern_io import save_patterns
 
-from .methods import POSTERIOR_HEADER, methods_summary, posterior_rows
+from .methods import FREQUENCY_HEADER, POSTERIOR_HEADER, methods_summary, posterior_frequency_rows, posterior_rows
 from .rom_summary import (
     CASE_HEADER,
     CORRECTION_HEADER,
@@ -372,6 +372,8 @@ def _posterior_section(res: RunResult, out: Path, methods: dict) -> list[dict]:
     fig = _fig(plot_contact_probability([posts[j].probability for j in joints], labels, columns),
                out / "contact_probability.png")
     _csv(out / "posterior_contact.csv", POSTERIOR_HEADER, [[_blank(v) for v in r] for r in posterior_rows(res)])
+    _csv(out / "posterior_frequencies.csv", FREQUENCY_HEADER,
+         [[_blank(v) for v in r] for r in posterior_frequency_rows(res)])
     s = res.posterior["surrogate"]
     m = methods.get("posterior", {})
     text = ["Each unfilmed joint's contact as a posterior over a continuous pattern family (the films' PCA and the "
@@ -400,7 +402,10 @@ def _posterior_section(res: RunResult, out: Path, methods: dict) -> list[dict]:
              "figures": [{"file": fig, "caption": "Posterior probability of contact at each node (left pair), beside "
                           "the k-NN's answer and the reference pattern where they exist."}],
              "tables": [{"file": "posterior_contact.csv", "caption": "The posterior's answer per unfilmed joint: "
-                         "area fractions and centroids with their 90 % intervals (experimental input)."}]}]
+                         "area fractions and centroids with their 90 % intervals (experimental input)."},
+                        {"file": "posterior_frequencies.csv", "caption": "Each unfilmed joint's tracked disk–one-blade "
+                         "frequencies: the test's (bias removed), the posterior's answer and the 90 % interval of "
+                         "the ROM's frequency over the posterior (model error not included)."}]}]
 
 
 def _full_section(res: RunResult, out: Path) -> dict:

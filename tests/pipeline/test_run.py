@@ -236,6 +236,14 @@ def test_posterior_runs_without_truth_and_answers_every_unfilmed_joint(campaign,
     rows = list(csv.reader((out / "posterior_contact.csv").read_text().splitlines()))[1:]
     assert sorted(int(r[0]) for r in rows) == sorted(j["joint"] for j in s["joints"] if j["joint"] not in known)
     assert all(r[7] == r[8] == "" for r in rows)  # reference areas blank, not "None"
+    freq = list(csv.DictReader((out / "posterior_frequencies.csv").read_text().splitlines()))
+    assert {int(r["joint"]) for r in freq} == {int(r[0]) for r in rows}
+    for r in freq:  # an interval, and the answer's offset from the test as written
+        f = float(r["answer (Hz)"])
+        assert float(r["5 % (Hz)"]) <= float(r["95 % (Hz)"])
+        if r["measured, bias removed (Hz)"]:
+            y = float(r["measured, bias removed (Hz)"])
+            assert float(r["answer − measured (%)"]) == pytest.approx(100 * (f / y - 1), abs=2e-3)  # 6 digits
     html = (out / "report.html").read_text()
     assert "Contact posterior" in html and "What the data pin down" in html
     assert html.index("The answer.") < html.index("Full-assembly validation")  # the summary leads with it
