@@ -33,6 +33,14 @@ METHOD_NODES = {"knn": ("predict", "refine_joint"),
 TARGETS = {"knn": "patterns/experimental", "posterior": "patterns/posterior_experimental"}
 
 
+def _link_or_copy(src: str, dst: str) -> None:
+    """Hard-link a store entry; copy it where the file system cannot link."""
+    try:
+        os.link(src, dst)
+    except OSError:
+        shutil.copy2(src, dst)
+
+
 def _timed(campaign, opts, name: str) -> tuple[float, int]:
     """Wall seconds of one method's nodes from a store that lacks them, and how many nodes it computed."""
     from bladetwin.run import run_nodes
@@ -60,9 +68,10 @@ def main(argv: list[str] | None = None) -> int:
     print(f"filling {store} with what both methods need (warm after `make run`) ...", flush=True)
     run_nodes(campaign, list(TARGETS.values()), RunOptions(cache_dir=store, workers=args.workers, method="both"))
     joints = [t.index for t in campaign.of_type("d1b") if t.index not in campaign.known_joints]
-    with tempfile.TemporaryDirectory(prefix="bladetwin-posterior-") as tmp:
+    # beside the store, so that its entries can be hard-linked (entries are replaced atomically, never edited)
+    with tempfile.TemporaryDirectory(prefix="bladetwin-posterior-", dir=store.parent) as tmp:
         copy = Path(tmp) / "store"
-        shutil.copytree(store, copy, copy_function=os.link)  # entries are replaced atomically, never edited
+        shutil.copytree(store, copy, copy_function=_link_or_copy)
         for folders in METHOD_NODES.values():
             for f in folders:
                 shutil.rmtree(copy / "nodes" / f, ignore_errors=True)
