@@ -19,7 +19,8 @@ def _add_fit_options(p: argparse.ArgumentParser) -> None:
                    help="pole estimator (default: lsrf, the library's default: it separates close modes at every "
                         "order and stays conditioned on narrow bands; docs/ema.md)")
     p.add_argument("--band", nargs=2, type=float, metavar=("F1", "F2"), help="band in Hz (default: all lines)")
-    p.add_argument("--order", type=int, default=60, help="highest model order (default 60)")
+    p.add_argument("--order", type=_order, default=60, help="highest model order, or 'auto': grown from 20 by "
+                   "doubling until the selection stops gaining modes (ema.fit_auto_order; default 60)")
     p.add_argument("--bands", type=int, default=1, help="fit band by band in this many sub-bands (dense spectra)")
     p.add_argument("--freq-tol", type=float, default=0.01, help="stability: relative frequency change (0.01)")
     p.add_argument("--damping-tol", type=float, default=0.05, help="stability: relative damping change (0.05)")
@@ -30,6 +31,19 @@ def _add_fit_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--nonfinite", choices=("refuse", "drop"), default="refuse",
                    help="NaN/inf lines: refuse the file (default) or drop those lines from every FRF, with a "
                         "warning that names them")
+
+
+def _order(text: str) -> int | str:
+    """``--order``: a positive integer or ``auto``."""
+    if text == "auto":
+        return text
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r}: expected an integer ≥ 2 or 'auto'") from None
+    if value < 2:
+        raise argparse.ArgumentTypeError(f"{text!r}: expected an integer ≥ 2 or 'auto'")
+    return value
 
 
 def _criteria(args: argparse.Namespace):
@@ -46,10 +60,16 @@ def _method(args: argparse.Namespace) -> str:
 
 
 def _fit(frf, args: argparse.Namespace, freqs=None):
-    from ema import fit
+    from ema import fit, fit_auto_order
 
     if args.bands < 1:
         raise ValueError(f"--bands must be ≥ 1, got {args.bands}")
+    if args.order == "auto":
+        result, order = fit_auto_order(frf, method=_method(args), band=tuple(args.band) if args.band else None,
+                                       frequencies_hz=freqs, criteria=_criteria(args), n_bands=args.bands,
+                                       refine=not args.no_refine)
+        print(f"model order chosen from the data: {order}", file=sys.stderr)
+        return result
     return fit(
         frf,
         method=_method(args),

@@ -11,6 +11,7 @@ from .frf import FRFSet, Nodes, UnitSystem, merge_frfsets
 from .lsfd import synthesize
 from .mac import ModePairing, mac, pair_by_frequency, pair_modes
 from .modal import ModalModel
+from .order import fit_auto_order
 from .picks import Picks, fit_with_picks, load_picks, save_picks
 from .stabilization import StabilityCriteria
 from .uff import read_frfs, read_modes, read_nodes, read_uff, read_units, write_frfs, write_modes
@@ -31,6 +32,7 @@ __all__ = [
     "blade_deltas",
     "disk_modes",
     "fit",
+    "fit_auto_order",
     "fit_with_picks",
     "joint_frequencies",
     "load_picks",
