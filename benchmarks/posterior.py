@@ -60,8 +60,8 @@ def main(argv: list[str] | None = None) -> int:
     from bladetwin.campaign import read_campaign
     from bladetwin.run import run_nodes
     from bladetwin.stages import RunOptions
+    from bladetwin.util import atomic_write_text
     from rom.cache import default_cache_dir
-    from rom.fileio import atomic_path
 
     campaign = read_campaign(args.campaign)
     store = default_cache_dir()
@@ -89,8 +89,7 @@ def main(argv: list[str] | None = None) -> int:
     print(f"{len(joints)} unfilmed joints; target: the posterior ≤ 180 s on 2 cores "
           f"({'met' if post_s <= 180 else 'NOT met'})")
     if args.json:
-        with atomic_path(args.json) as tmp_path:
-            tmp_path.write_text(json.dumps(figures, indent=2))
+        atomic_write_text(args.json, json.dumps(figures, indent=2))
     return 0
 
 

@@ -110,13 +110,9 @@ _METHOD_FIGURES = (("mean area-fraction error (pp)", "area_error_pp", ".2f"),
 
 def contact_rows(docs: dict) -> list[Row]:
     """The unfilmed joints' contact against the truth (``summary.json`` → ``methods``): the contact posterior, the
-    k-NN and the baseline per input; the run's answer against the baseline (``geometric``) where the methods
-    block is absent."""
-    s = docs.get("summary.json", {})
-    if lookup(s, "methods.baseline") is None:
-        return [_row(label, docs, [("summary.json", f"geometric.{key}.identified", ".2f"),
-                                   ("summary.json", f"geometric.{key}.baseline", ".2f")])
-                for label, key, _ in _METHOD_FIGURES[:2] if lookup(s, f"geometric.{key}") is not None]
+    k-NN and the baseline per input (none without a reference: ``methods.baseline`` is then absent)."""
+    if lookup(docs.get("summary.json", {}), "methods.baseline") is None:
+        return []
     rows = []
     for inp in ("experimental", "numerical"):
         for label, key, spec in _METHOD_FIGURES:
@@ -203,7 +199,6 @@ def _table(header: list[str], rows: list[Row], with_command: bool = False) -> li
 
 
 _T8_HEADER = ["Table 8", "mean \\|Δf\\| %", "mean MAC", "paired modes", "paper \\|Δf\\| %", "paper MAC"]
-_GEO_HEADER = ["unfilmed joints vs truth", "identified", "baseline"]
 _METHODS_HEADER = ["unfilmed joints vs truth", "contact posterior", "k-NN (refined)", "baseline"]
 _PERF_HEADER = ["what", "measured", "reference", "ratio", "command"]
 _ROM_HEADER = ["vs the full-assembly test", "paper's ROM \\|Δf\\| %", "paper's ROM MAC", "paired",
@@ -222,10 +217,9 @@ def readme_blocks(docs: dict) -> dict[str, str]:
           "Cases A and B take the k-NN's answers (the paper's method) unless marked *contact posterior*:", "",
           *_table(_T8_HEADER, _pad(table8_rows(docs), 5))]
     geo = contact_rows(docs)
-    header = _METHODS_HEADER if lookup(s, "methods.baseline") is not None else _GEO_HEADER
     contact = ([f"At the unfilmed joints, against the campaign's true patterns ({run}; the numerical input is the "
                 "ROM's own d1b frequencies with the true patterns, the experimental input the measured ones):", "",
-                *_table(header, _pad(geo, len(header) - 1))] if geo
+                *_table(_METHODS_HEADER, _pad(geo, len(_METHODS_HEADER) - 1))] if geo
                else ["No true patterns in this campaign: no contact check."])
     rom = rom_rows(docs)
     answer = "the contact posterior's" if lookup(s, "methods.posterior") is not None else "the k-NN's"

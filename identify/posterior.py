@@ -168,31 +168,38 @@ def joint_posterior(prior: ContactPrior, surrogate: ContactSurrogate, target_hz,
     return _summarise(prior, surrogate, chain, logp, coordinates, logr, float(np.mean(sampler.acceptance_fraction)))
 
 
+def _area_centroid(grids: np.ndarray, u: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Area fraction (%, shape (n, 2)) and centroid (m, shape (n, 2, 2)) of each grid pair (n, 2, rows, cols)."""
+    area = contact_area_fraction(grids)
+    with np.errstate(invalid="ignore"):
+        return area, contact_centroid(grids, u, v)
+
+
+def _ci90(area: np.ndarray, cen: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """5 % and 95 % quantiles: of the areas, shape (2, 2), and of the centroids, shape (2, 2, 2)."""
+    q = (5, 95)
+    return np.percentile(area, q, axis=0).T, np.moveaxis(np.nanpercentile(cen, q, axis=0), 0, -1)
+
+
 def _summarise(prior, surrogate, chain, logp, coordinates, logr, acceptance) -> JointPosterior:
     """Every figure of :class:`JointPosterior` from the kept samples."""
     u, v = (np.asarray(a, np.float64) for a in coordinates)
     best = int(np.argmax(logp))
     grids = prior.grids(chain)
-    area = contact_area_fraction(grids)  # (n, 2)
-    with np.errstate(invalid="ignore"):
-        cen = contact_centroid(grids, u, v)  # (n, 2, 2)
+    area, cen = _area_centroid(grids, u, v)
+    area_ci90, centroid_ci90 = _ci90(area, cen)
     freq = surrogate.predict_hz(grids) * np.exp(logr)
-    q = (5, 95)
     return JointPosterior(
         pattern=ContactPattern(grids[best, 0], grids[best, 1]), theta_map=chain[best].copy(),
-        probability=grids.mean(axis=0), area_pct_map=area[best], area_pct_ci90=np.percentile(area, q, axis=0).T,
-        centroid_map=cen[best], centroid_ci90=np.moveaxis(np.nanpercentile(cen, q, axis=0), 0, -1),
-        frequencies_hz=freq[best], frequencies_hz_ci90=np.percentile(freq, q, axis=0).T,
+        probability=grids.mean(axis=0), area_pct_map=area[best], area_pct_ci90=area_ci90,
+        centroid_map=cen[best], centroid_ci90=centroid_ci90,
+        frequencies_hz=freq[best], frequencies_hz_ci90=np.percentile(freq, (5, 95), axis=0).T,
         n_samples=len(chain), acceptance=acceptance)
 
 
-def _intervals(grids: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """90 % interval widths of [area L, area R, ū L, v̄ L, ū R, v̄ R] over grids (n, 2, rows, cols), shape (6,)."""
-    area = contact_area_fraction(grids)
-    with np.errstate(invalid="ignore"):
-        cen = contact_centroid(grids, u, v).reshape(len(grids), 4)
-    q = np.c_[np.percentile(area, (5, 95), axis=0), np.nanpercentile(cen, (5, 95), axis=0)]
-    return q[1] - q[0]
+def _widths(area_ci90: np.ndarray, centroid_ci90: np.ndarray) -> np.ndarray:
+    """Interval widths in the order of :data:`WIDTH_NAMES`, shape (6,)."""
+    return np.r_[np.diff(area_ci90, axis=1).ravel(), np.diff(centroid_ci90, axis=2).ravel()]
 
 
 #: The quantities :func:`width_ratio` compares, in its order (area in %, centroid coordinates in m).
@@ -203,11 +210,10 @@ def prior_intervals(prior: ContactPrior, coordinates, *, n: int = 4000, seed: in
     """90 % interval widths of each flank's area fraction (%) and centroid (m) under the prior, shape (6,) in the
     order of :data:`WIDTH_NAMES`, from ``n`` seeded prior draws."""
     u, v = (np.asarray(a, np.float64) for a in coordinates)
-    return _intervals(prior.grids(prior.draw(n, np.random.default_rng(seed))), u, v)
+    return _widths(*_ci90(*_area_centroid(prior.grids(prior.draw(n, np.random.default_rng(seed))), u, v)))
 
 
 def width_ratio(post: JointPosterior, prior_widths: np.ndarray) -> np.ndarray:
     """Posterior over prior 90 % width of each quantity of :data:`WIDTH_NAMES`, shape (6,): 1 where the data say
     nothing about it, near 0 where they pin it down (the identifiability study of docs/identify.md)."""
-    post_w = np.r_[np.diff(post.area_pct_ci90, axis=1).ravel(), np.diff(post.centroid_ci90, axis=2).ravel()]
-    return post_w / np.asarray(prior_widths, np.float64)
+    return _widths(post.area_pct_ci90, post.centroid_ci90) / np.asarray(prior_widths, np.float64)
