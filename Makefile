@@ -36,6 +36,7 @@ bench-results: $(STAMP)
 	mkdir -p docs/results
 	$(BIN)/python benchmarks/run_cold.py --json docs/results/bench_run.json
 	$(BIN)/python benchmarks/ema.py --json docs/results/bench_ema.json
+	$(BIN)/python benchmarks/ema_families.py --json docs/results/bench_ema_families.json
 	$(BIN)/python benchmarks/rom.py --json docs/results/bench_rom.json
 	$(BIN)/python benchmarks/dataset.py --json docs/results/bench_dataset.json
 	$(BIN)/python benchmarks/posterior.py --json docs/results/bench_posterior.json

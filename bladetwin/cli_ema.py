@@ -26,6 +26,8 @@ def _add_fit_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--damping-tol", type=float, default=0.05, help="stability: relative damping change (0.05)")
     p.add_argument("--mac-min", type=float, default=0.95, help="stability: minimum MAC (0.95)")
     p.add_argument("--no-refine", action="store_true", help="keep the estimator's poles (no nonlinear refinement)")
+    p.add_argument("--families", action="store_true",
+                   help="resolve dense mode families with a rank-one residue fit (a whole bladed disk's test)")
     p.add_argument("--form", choices=("receptance", "mobility", "accelerance"),
                    help="FRF form when the files do not state it")
     p.add_argument("--nonfinite", choices=("refuse", "drop"), default="refuse",
@@ -80,6 +82,7 @@ def _fit(frf, args: argparse.Namespace, freqs=None):
         n_bands=args.bands,
         refine=not args.no_refine,
         progress=sys.stderr.isatty(),
+        families=getattr(args, "families", False),
     )
 
 

@@ -17,6 +17,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 import ema
+from ema.mac import pair_by_frequency
 from ema.numbering import rom_modal_model
 from identify.plots import (
     plot_area_fractions,
@@ -147,6 +148,24 @@ def _blank(v: float):
 def ema_modes(res: RunResult) -> dict:
     """summary.json's ``ema``: every test's modes (Hz, damping ratio) with their standard deviations."""
     return {name: fit.model.as_records() for name, (_, fit) in res.ema.items()}
+
+
+def ema_assembly(res: RunResult) -> dict | None:
+    """summary.json's ``ema_assembly``: the full-assembly test's mode count and, for a virtual campaign, how many
+    of the truth's visible modes get a one-to-one EMA mode within 0.05 % (``ema.mac.pair_by_frequency``)."""
+    fits = [fit for t, fit in res.ema.values() if t.type == "assembly"]
+    if not fits:
+        return None
+    model = fits[0].model
+    out: dict = {"n_modes": int(model.n_modes)}
+    truth = res.campaign.truth_dir
+    path = truth / "truth.json" if truth is not None else None
+    if path is not None and path.is_file():
+        visible = json.loads(path.read_text()).get("frequencies_hz", {}).get("assembly")
+        if visible:
+            rows, _ = pair_by_frequency(model.frequencies_hz, visible, 5e-4)
+            out |= {"n_visible": len(visible), "one_to_one_within_0p05pct": rows.size / len(visible)}
+    return out
 
 
 def _ema_section(res: RunResult, out: Path, notes: list[str]) -> dict:
@@ -498,7 +517,8 @@ def write_outputs(res: RunResult, out: Path, *, command: str = "bladetwin run") 
     summary["notes"] = summary["notes"] + notes
     summary["warnings"] = unique(summary["warnings"] + texts)
     summary.update(_clean({"joints": joints, "sections": sections, "geometric": geo, "d1b": d1b_summary,
-                           "ema": ema_modes(res), "methods": methods, "rom": rom}))
+                           "ema": ema_modes(res), "ema_assembly": ema_assembly(res), "methods": methods,
+                           "rom": rom}))
     summary["files"] = {"patterns": "identified_patterns.npz", "rom_modes_uff": "identified_rom_modes.uff"}
     atomic_write_text(out / "summary.json", json.dumps(summary, indent=2, allow_nan=False, default=_nan) + "\n")
     return summary

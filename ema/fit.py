@@ -13,18 +13,19 @@ from typing import NamedTuple
 import numpy as np
 
 from .errors import EMAError
+from .family import FamilyFit, resolve_families
 from .frf import FRF_FORMS, FRFSet
 from .lscf import lscf
-from .lsfd import dominance, fit_quality, local_windows, modal_model, refine_poles, synthesize
+from .lsfd import _shapes, dominance, fit_quality, local_windows, modal_model, refine_poles, synthesize
 from .lsrf import lsrf
 from .mac import distinct_mac, mac, mac_paired
-from .modal import ModalModel
+from .modal import ModalModel, modal_from_pole
 from .poles import PoleSet, band_data, merge_polesets, single_thread_blas
 from .selection import PoleSelection, select_auto, select_near, select_picks
 from .stabilization import StabilityCriteria, StabilizationDiagram, stabilize
 from .uncertainty import order_spread, pole_std
 
-__all__ = ["METHODS", "estimate_poles", "local_poles", "EMAResult", "fit", "mode_dominance"]
+__all__ = ["METHODS", "estimate_poles", "local_poles", "EMAResult", "fit", "mode_dominance", "merge_families"]
 
 log = logging.getLogger(__name__)
 
@@ -257,6 +258,7 @@ def fit(
     refine: bool = True,
     progress: bool = False,
     pad: float = 0.25,
+    families: bool = False,
 ) -> EMAResult:
     """Identify modes from FRFs in one call.
 
@@ -298,6 +300,11 @@ def fit(
     pad : float
         Widening of the band on each side, as a fraction of its width (single-band fits); 0 fits the band
         alone.
+    families : bool
+        Resolve dense mode families (:func:`ema.family.resolve_families`): every window of two or more of the
+        selected modes is refitted with rank-one residues and grown while a new mode explains more than the
+        noise of its band. Each mode is then taken from the fit that gives it the smaller standard deviation
+        (:func:`merge_families`). For tests of a whole mistuned bladed disk.
 
     Returns
     -------
@@ -351,10 +358,76 @@ def fit(
             f_std, z_std = pole_std(frf, model.poles, user_band)
             f_std = np.hypot(f_std, order_spread(model.frequencies_hz, model.damping_ratio, diagram))
             model = replace(model, frequency_std_hz=f_std, damping_std=z_std)
+        if families and model.n_modes:
+            model = merge_families(frf, model, resolve_families(frf, model.poles, user_band, progress=progress))
+            dom = mode_dominance(frf, model, diagram.criteria.mac_min) if model.n_modes else np.zeros(0)
     quality = fit_quality(frf, model) if model.n_modes else np.zeros((frf.n_outputs, frf.n_inputs))
     log.info("%s: %d modes in %.6g-%.6g Hz", diagram.method, model.n_modes, *diagram.band_hz)
     return EMAResult(diagram=diagram, selection=selection, model=model, quality=quality, dominance=dom,
                      dropped_hz=tuple(sorted(dropped)))
+
+
+def merge_families(frf: FRFSet, model: ModalModel, fits: Sequence[FamilyFit]) -> ModalModel:
+    """The model with each window's modes taken from the more precise of the ordinary and the structured fit.
+
+    An ordinary mode corresponds to the nearest structured mode of its window within ``max(2 ζ f, 2 lines)``.
+    It is kept, and that structured mode dropped, when its own frequency standard deviation is the smaller
+    (a mode seen by few FRFs under the large background of a strong family is fitted better with free
+    residues); otherwise the structured mode replaces it. An ordinary mode with no structured counterpart is
+    kept, and structured modes that correspond to no ordinary mode are new modes. Shapes and standard
+    deviations of the structured modes come from their rank-one residues and Gauss–Newton covariance.
+
+    Parameters
+    ----------
+    frf : FRFSet
+    model : ModalModel
+        The ordinary fit, with ``frequency_std_hz``.
+    fits : sequence of FamilyFit
+        :func:`ema.family.resolve_families` on ``model.poles``.
+    """
+    if not fits:
+        return model
+    f, z = model.frequencies_hz, model.damping_ratio
+    sig = np.where(np.isfinite(model.frequency_std_hz), model.frequency_std_hz, np.inf)
+    spacing = float(np.median(np.diff(frf.freq_hz))) if frf.freq_hz.size > 1 else 0.0
+    keep_ord = np.ones(f.size, bool)
+    lam, res, fs, zs = [], [], [], []
+    for fit in fits:
+        ff = modal_from_pole(fit.poles)[0]
+        keep_s = np.ones(ff.size, bool)
+        for r in np.flatnonzero((f >= fit.window_hz[0]) & (f <= fit.window_hz[1])):
+            near = np.abs(ff - f[r])
+            s = int(np.argmin(near)) if ff.size else -1
+            if s < 0 or near[s] > max(2 * z[r] * f[r], 2 * spacing):
+                continue  # the structured fit lost it: the ordinary mode stays
+            s_sig = fit.frequency_std_hz[s] if np.isfinite(fit.frequency_std_hz[s]) else np.inf
+            if sig[r] < s_sig:
+                keep_s[s] = False
+            else:
+                keep_ord[r] = False
+        lam.append(fit.poles[keep_s])
+        res.append(fit.residues[keep_s])
+        fs.append(fit.frequency_std_hz[keep_s])
+        zs.append(fit.damping_std[keep_s])
+    new = np.concatenate(lam)
+    poles = np.r_[model.poles[keep_ord], new]
+    mark = np.r_[np.zeros(keep_ord.sum(), bool), np.ones(new.size, bool)]
+    f_std = np.r_[model.frequency_std_hz[keep_ord], np.concatenate(fs)]
+    z_std = np.r_[model.damping_std[keep_ord], np.concatenate(zs)]
+    quality = np.r_[model.quality[keep_ord], np.full(new.size, np.nan)] if model.quality is not None else None
+    order = np.argsort(np.abs(poles), kind="stable")
+    with single_thread_blas():
+        merged = modal_model(frf, poles[order], model.band_hz, quality=None if quality is None else quality[order],
+                             method=model.method + "+families")
+    structured = mark[order]
+    if structured.any():
+        # the structured modes' shapes: their rank-one residues, scaled as the ordinary ones
+        idx = np.argsort(np.abs(new), kind="stable")
+        phi, _, _ = _shapes(np.concatenate(res)[idx], new[idx], frf)
+        shapes = merged.shapes.copy()
+        shapes[:, structured] = phi
+        merged = replace(merged, shapes=shapes)
+    return replace(merged, frequency_std_hz=f_std[order], damping_std=z_std[order])
 
 
 def _padded(frf: FRFSet, band: tuple[float, float], pad: float) -> tuple[float, float]:
