@@ -66,17 +66,20 @@ def _fit(frf, args: argparse.Namespace, freqs=None):
 
     if args.bands < 1:
         raise ValueError(f"--bands must be ≥ 1, got {args.bands}")
-    if args.order == "auto":
+    order = args.order
+    if order == "auto":
         result, order = fit_auto_order(frf, method=_method(args), band=tuple(args.band) if args.band else None,
                                        frequencies_hz=freqs, criteria=_criteria(args), n_bands=args.bands,
                                        refine=not args.no_refine)
         print(f"model order chosen from the data: {order}", file=sys.stderr)
-        return result
+        if not getattr(args, "families", False):
+            return result
+        # the families grow from the fit at the chosen order
     return fit(
         frf,
         method=_method(args),
         band=tuple(args.band) if args.band else None,
-        max_order=args.order,
+        max_order=order,
         frequencies_hz=freqs,
         criteria=_criteria(args),
         n_bands=args.bands,
@@ -225,7 +228,7 @@ def register(subparsers) -> None:
     for name, func, what in (
         ("blades", _cmd_blades, "blade frequencies and deltas (Eq. 37), one UFF per blade"),
         ("disk", _cmd_disk, "disk modes with nodal diameters, one out-of-plane point per sector"),
-        ("assembly", _cmd_assembly, "assembly modes (use --bands for dense spectra)"),
+        ("assembly", _cmd_assembly, "assembly modes (use --families for dense blade families)"),
         ("joints", _cmd_joints, "disk-one-blade frequencies, one UFF per joint"),
     ):
         q = sub.add_parser(name, help=what)

@@ -95,3 +95,21 @@ def test_no_growth_on_a_lone_mode():
     out = fit_family(frf, pole_from_modal(fn * 1.0002, zeta), (480.0, 520.0), (485.0, 515.0))
     assert out.n_modes == 1
     assert abs(np.abs(out.poles[0]) / (2 * np.pi) - fn[0]) / fn[0] < 1e-4
+
+
+def test_cli_families(family, tmp_path, capsys):
+    """``bladetwin ema fit --families`` gives the library's answer; without the flag the family stays merged."""
+    import json
+
+    from bladetwin.cli import main
+    from ema import write_frfs
+
+    frf, fn, _, _ = family
+    path = tmp_path / "family.uff"
+    write_frfs(path, frf)
+    found = []
+    for extra in ([], ["--families"]):
+        assert main(["ema", "fit", str(path), "--band", "400", "620", "--json", *extra]) == 0
+        found.append(np.array([rec["frequency_hz"] for rec in json.loads(capsys.readouterr().out)["modes"]]))
+    assert len(_one_to_one(found[0], fn)) < fn.size
+    assert len(_one_to_one(found[1], fn)) == fn.size == found[1].size
