@@ -156,8 +156,8 @@ class _Window:
         eye = np.eye(ni)[None, :, :, None]
         free = np.ones((n, ni), bool)
         free[np.arange(n), pivot] = False
-        s = (eye * (a + b)[:, None, None, :])[free].reshape(n, ni - 1, -1)
-        d = (eye * (a - b)[:, None, None, :])[free].reshape(n, ni - 1, -1)
+        s = (eye * (a + b)[:, None, None, :])[free].reshape(n, ni - 1, ni * self.n_lines)
+        d = (eye * (a - b)[:, None, None, :])[free].reshape(n, ni - 1, ni * self.n_lines)
         d1[:, 2::2], d2[:, 2::2] = s, 1j * d        # d/d Re l_i of the Re ψ and Im ψ columns
         d1[:, 3::2], d2[:, 3::2] = 1j * d, -s       # d/d Im l_i
         owner_ = np.repeat(np.arange(n), k)
