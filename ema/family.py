@@ -28,7 +28,7 @@ This module fits that model window by window:
   the noise of its own band.
 
 The result replaces the window's modes; their shapes come from ``ψ_r l_rᵀ`` and their standard deviations
-from the Gauss–Newton covariance of the structured fit.
+from the sandwich covariance of the structured fit (the lines as clusters, as :func:`ema.uncertainty.pole_std`).
 """
 
 from __future__ import annotations
@@ -65,7 +65,7 @@ class FamilyFit:
     residues : ndarray of complex128, shape (n_modes, n_outputs, n_inputs)
         ``ψ_r l_rᵀ`` in the receptance convention of :func:`ema.lsfd.lsfd`.
     frequency_std_hz, damping_std : ndarray of float64, shape (n_modes,)
-        Gauss–Newton standard deviations (noise variance from the final residual).
+        Sandwich standard deviations (White's estimator with the spectral lines as clusters).
     n_start : int
         Modes the window started with.
     """

@@ -374,8 +374,9 @@ def merge_families(frf: FRFSet, model: ModalModel, fits: Sequence[FamilyFit]) ->
     It is kept, and that structured mode dropped, when its own frequency standard deviation is the smaller
     (a mode seen by few FRFs under the large background of a strong family is fitted better with free
     residues); otherwise the structured mode replaces it. An ordinary mode with no structured counterpart is
-    kept, and structured modes that correspond to no ordinary mode are new modes. Shapes and standard
-    deviations of the structured modes come from their rank-one residues and Gauss–Newton covariance.
+    kept, and structured modes that correspond to no ordinary mode are new modes; ordinary modes are matched
+    closest first, each structured mode to one at most. Shapes and standard deviations of the structured modes
+    come from their rank-one residues and sandwich covariance (:class:`ema.family.FamilyFit`).
 
     Parameters
     ----------
@@ -395,11 +396,14 @@ def merge_families(frf: FRFSet, model: ModalModel, fits: Sequence[FamilyFit]) ->
     for fit in fits:
         ff = modal_from_pole(fit.poles)[0]
         keep_s = np.ones(ff.size, bool)
-        for r in np.flatnonzero((f >= fit.window_hz[0]) & (f <= fit.window_hz[1])):
-            near = np.abs(ff - f[r])
+        taken = np.zeros(ff.size, bool)   # each structured mode answers for one ordinary mode at most
+        inside = np.flatnonzero((f >= fit.window_hz[0]) & (f <= fit.window_hz[1]))
+        for r in sorted(inside, key=lambda r: np.min(np.abs(ff - f[r])) if ff.size else 0.0):
+            near = np.where(taken, np.inf, np.abs(ff - f[r]))
             s = int(np.argmin(near)) if ff.size else -1
             if s < 0 or near[s] > max(2 * z[r] * f[r], 2 * spacing):
                 continue  # the structured fit lost it: the ordinary mode stays
+            taken[s] = True
             s_sig = fit.frequency_std_hz[s] if np.isfinite(fit.frequency_std_hz[s]) else np.inf
             if sig[r] < s_sig:
                 keep_s[s] = False
