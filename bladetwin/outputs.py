@@ -95,11 +95,34 @@ def _stabilization(name: str, test, fit, out: Path) -> dict:
     from ema.plots import plot_stabilization
 
     fig = plot_stabilization(fit.diagram, ema.read_uff(test.file), selected_hz=fit.model.frequencies_hz)
-    fig.axes[0].set_title(f"{test.file.name}: {fit.method.upper()}, "
+    fig.axes[0].set_title(f"{test.file.name}: {_method_label(fit)}, "
                           f"{'picked by hand' if fit.picked else 'automatic selection'}, {fit.model.n_modes} modes")
+    families = " The dense mode families were then resolved by the rank-one residue fit (docs/ema.md): the " \
+               "modes it added need not sit on a stable column." if "+families" in (fit.model.method or "") else ""
     return {"file": _fig(fig, out / f"stabilization_{name}.png"),
             "caption": f"Stabilization diagram of {test.file.name} ({test.type} test), "
-                       f"{'hand-picked poles' if fit.picked else 'automatic selection'}."}
+                       f"{'hand-picked poles' if fit.picked else 'automatic selection'}.{families}"}
+
+
+def _families_figure(name: str, test, fit, out: Path) -> list[dict]:
+    """The zoom on a test's dense windows (four modes or more) after the family fit, beside its diagram."""
+    from ema.family import family_windows
+    from ema.plots import plot_families
+
+    frf = ema.read_uff(test.file)
+    f = fit.model.frequencies_hz
+    windows = [w for w, _ in family_windows(fit.model.poles, frf, fit.model.band_hz or (f.min(), f.max()))
+               if np.count_nonzero((f >= w[0]) & (f <= w[1])) >= 4]
+    if not windows:
+        return []
+    return [{"file": _fig(plot_families(frf, fit.model, windows), out / f"families_{name}.png"),
+             "caption": f"Dense mode families of {test.file.name}: the RMS of all its FRFs (black) against the "
+                        "identified modal model (red, dashed), each mode a blue line."}]
+
+
+def _method_label(fit) -> str:
+    """The pole estimator, with "+FAMILIES" where the dense families were resolved (ema.fit(families=True))."""
+    return (fit.model.method or fit.method).upper()
 
 
 def _ema_tables(res: RunResult, out: Path, notes: list[str]) -> list[dict]:
@@ -172,12 +195,14 @@ def _ema_section(res: RunResult, out: Path, notes: list[str]) -> dict:
     rows, figs, drawn = [], [], set()
     for name, (t, fit) in res.ema.items():
         q = fit.fit_quality
-        rows.append([name, t.type, t.file.name, fit.method.upper(),
+        rows.append([name, t.type, t.file.name, _method_label(fit),
                      "picks file " + t.picks.name if fit.picked else "automatic", fit.model.n_modes,
                      float(np.min(q)) if q.size else float("nan"), float(np.mean(q)) if q.size else float("nan")])
         if t.type not in drawn or fit.picked:  # one diagram per test type, and every hand-picked one
             drawn.add(t.type)
             figs.append(_stabilization(name, t, fit, out))
+        if "+families" in (fit.model.method or ""):
+            figs += _families_figure(name, t, fit, out)
     t_quality = _csv(out / "ema_quality.csv", ["test", "type", "file", "method", "selection", "modes",
                                                "fit quality min", "fit quality mean"], rows)
     figs.append({"file": _fig(plot_blade_deltas(res.blades.deltas_pct), out / "blade_deltas.png"),

@@ -11,7 +11,7 @@ from .lsfd import synthesize
 from .modal import ModalModel
 from .stabilization import CLASS_NAMES, StabilizationDiagram
 
-__all__ = ["plot_stabilization", "plot_mac", "plot_frf_fit"]
+__all__ = ["plot_stabilization", "plot_mac", "plot_frf_fit", "plot_families"]
 
 _STYLE = {0: ("o", "0.7", 3), 1: ("x", "tab:orange", 4), 2: ("d", "tab:blue", 4), 3: ("+", "tab:green", 7)}
 
@@ -108,4 +108,39 @@ def plot_frf_fit(frf: FRFSet, model: ModalModel, output: int = 0, input: int = 0
     ax.set_ylabel(f"|H| ({model.form})")
     ax.set_title(f"output {frf.outputs[output]} / input {frf.inputs[input]}")
     ax.legend(fontsize="small")
+    return fig
+
+
+def plot_families(frf: FRFSet, model: ModalModel, windows: list[tuple[float, float]]) -> Figure:
+    """One panel per dense window: the RMS over all FRFs of the measurement and of the model's synthesis, with
+    a line at each mode (the zoom a whole-band stabilization diagram cannot show).
+
+    Parameters
+    ----------
+    frf : FRFSet
+    model : ModalModel
+        With residues (e.g. from ``ema.fit(families=True)``).
+    windows : list of (f_lo, f_hi)
+        Hz, e.g. the windows of :func:`ema.family.family_windows` holding several modes.
+    """
+    n = max(len(windows), 1)
+    fig = Figure(figsize=(4.5 * n, 3.6))
+    data = frf.with_form(model.form) if frf.form != model.form else frf
+    for k, (lo, hi) in enumerate(windows):
+        ax = fig.add_subplot(1, n, k + 1)
+        mask = (data.freq_hz >= lo) & (data.freq_hz <= hi)
+        f = data.freq_hz[mask]
+        rms = np.sqrt(np.mean(np.abs(data.H[:, :, mask]) ** 2, axis=(0, 1)))
+        syn = np.sqrt(np.mean(np.abs(synthesize(model, f).H) ** 2, axis=(0, 1)))
+        ax.semilogy(f, rms, color="k", linewidth=0.9, label="measured")
+        ax.semilogy(f, syn, color="tab:red", linewidth=0.9, linestyle="--", label="model")
+        inside = model.frequencies_hz[(model.frequencies_hz >= lo) & (model.frequencies_hz <= hi)]
+        for fr in inside:
+            ax.axvline(fr, color="tab:blue", linewidth=0.4, alpha=0.7)
+        ax.set_title(f"{lo:.5g}–{hi:.5g} Hz: {inside.size} modes", fontsize="small")
+        ax.set_xlabel("frequency [Hz]")
+        if k == 0:
+            ax.set_ylabel(f"RMS |H| over all FRFs ({model.form})")
+            ax.legend(fontsize="small")
+    fig.tight_layout()
     return fig

@@ -129,3 +129,18 @@ def test_one_reference():
     model = fit(frf, band=(400.0, 620.0), families=True).model
     assert len(_one_to_one(model.frequencies_hz, fn)) >= len(_one_to_one(plain.frequencies_hz, fn))
     assert all(np.min(np.abs(f - fn) / fn) <= 0.01 for f in model.frequencies_hz)
+
+
+def test_plot_families_one_panel_per_window(family, fits):
+    """The report's zoom: a panel per dense window, titled with the number of modes the model has there."""
+    from ema.plots import plot_families
+
+    frf = family[0]
+    model = fits[1].model
+    windows = [(495.0, 510.0), (420.0, 440.0)]
+    fig = plot_families(frf, model, windows)
+    assert len(fig.axes) == 2
+    for ax, (lo, hi) in zip(fig.axes, windows, strict=True):
+        n = int(np.count_nonzero((model.frequencies_hz >= lo) & (model.frequencies_hz <= hi)))
+        assert ax.get_title().endswith(f"{n} modes")
+    assert fig.axes[0].get_title().endswith("10 modes")
