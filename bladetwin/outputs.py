@@ -90,11 +90,11 @@ def _label(i: int) -> str:
     return f"SP-{i + 1}"
 
 
-def _stabilization(name: str, test, fit, out: Path) -> dict:
+def _stabilization(name: str, test, fit, frf, out: Path) -> dict:
     """One test's stabilization diagram, drawn from its stored diagram over its FRFs."""
     from ema.plots import plot_stabilization
 
-    fig = plot_stabilization(fit.diagram, ema.read_uff(test.file), selected_hz=fit.model.frequencies_hz)
+    fig = plot_stabilization(fit.diagram, frf, selected_hz=fit.model.frequencies_hz)
     fig.axes[0].set_title(f"{test.file.name}: {_method_label(fit)}, "
                           f"{'picked by hand' if fit.picked else 'automatic selection'}, {fit.model.n_modes} modes")
     families = " The dense mode families were then resolved by the rank-one residue fit (docs/ema.md): the " \
@@ -104,12 +104,11 @@ def _stabilization(name: str, test, fit, out: Path) -> dict:
                        f"{'hand-picked poles' if fit.picked else 'automatic selection'}.{families}"}
 
 
-def _families_figure(name: str, test, fit, out: Path) -> list[dict]:
+def _families_figure(name: str, test, fit, frf, out: Path) -> list[dict]:
     """The zoom on a test's dense windows (four modes or more) after the family fit, beside its diagram."""
     from ema.family import family_windows
     from ema.plots import plot_families
 
-    frf = ema.read_uff(test.file)
     f = fit.model.frequencies_hz
     windows = [w for w, _ in family_windows(fit.model.poles, frf, fit.model.band_hz or (f.min(), f.max()))
                if np.count_nonzero((f >= w[0]) & (f <= w[1])) >= 4]
@@ -198,11 +197,14 @@ def _ema_section(res: RunResult, out: Path, notes: list[str]) -> dict:
         rows.append([name, t.type, t.file.name, _method_label(fit),
                      "picks file " + t.picks.name if fit.picked else "automatic", fit.model.n_modes,
                      float(np.min(q)) if q.size else float("nan"), float(np.mean(q)) if q.size else float("nan")])
-        if t.type not in drawn or fit.picked:  # one diagram per test type, and every hand-picked one
+        diagram = t.type not in drawn or fit.picked  # one diagram per test type, and every hand-picked one
+        families = "+families" in (fit.model.method or "")
+        frf = ema.read_uff(t.file) if diagram or families else None   # read once for both figures
+        if diagram:
             drawn.add(t.type)
-            figs.append(_stabilization(name, t, fit, out))
-        if "+families" in (fit.model.method or ""):
-            figs += _families_figure(name, t, fit, out)
+            figs.append(_stabilization(name, t, fit, frf, out))
+        if families:
+            figs += _families_figure(name, t, fit, frf, out)
     t_quality = _csv(out / "ema_quality.csv", ["test", "type", "file", "method", "selection", "modes",
                                                "fit quality min", "fit quality mean"], rows)
     figs.append({"file": _fig(plot_blade_deltas(res.blades.deltas_pct), out / "blade_deltas.png"),

@@ -39,7 +39,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .frf import FRF_FORMS, FRFSet
-from .lsfd import LOCAL_HALF_WIDTHS, LOCAL_MIN_LINES
+from .lsfd import _half_widths, lsfd
 from .modal import modal_from_pole, pole_from_modal
 
 __all__ = ["FamilyFit", "family_windows", "fit_family", "resolve_families"]
@@ -193,17 +193,10 @@ def _step(f, logz, part, pivot, delta):
     return f, np.clip(logz, *np.log(ZETA_BOUNDS)), part
 
 
-def _participations(win: _Window, lam: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Each mode's participation from a free-residue solve at the poles: the rank-one part of its residues."""
-    n = lam.size
-    a, b, _, _ = win.kernels(lam)
-    g = win.jw**win.power
-    cols = np.concatenate([(a + b).T, (1j * (a - b)).T, (g / win.jw**2)[:, None], g[:, None]], axis=1)
-    Y = win.Y.reshape(2, win.n_in, win.n_lines, win.n_out)
-    Yf = (Y[0] + 1j * Y[1]).transpose(2, 0, 1).reshape(-1, win.n_lines).T   # (lines, out·in)
-    X = np.linalg.lstsq(np.vstack([cols.real, cols.imag]), np.vstack([Yf.real, Yf.imag]), rcond=None)[0]
-    A = (X[:n] + 1j * X[n:2 * n]).reshape(n, win.n_out, win.n_in)
-    part = np.array([np.linalg.svd(A[r])[2][0] for r in range(n)]).T.reshape(win.n_in, n)
+def _participations(frf: FRFSet, window: tuple[float, float], lam: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Each mode's participation from the free-residue LSFD at the poles: the rank-one part of its residues."""
+    A = lsfd(frf, lam, window)[0]                              # (n, n_out, n_in)
+    part = np.array([np.linalg.svd(A[r])[2][0] for r in range(lam.size)]).T.reshape(A.shape[2], lam.size)
     return _normalised(part)
 
 
@@ -213,7 +206,7 @@ def _normalised(part: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _refine(win: _Window, f, zeta, part, pivot):
-    """Levenberg–Marquardt on the variable-projection cost; returns (f, ζ, part, cost, JᵀJ)."""
+    """Levenberg–Marquardt on the variable-projection cost; returns (f, ζ, part)."""
     f, logz = np.asarray(f, float).copy(), np.log(np.clip(zeta, *ZETA_BOUNDS))
     lo, hi = win.freq[0], win.freq[-1]
     cost, JJ, grad = win.normal_equations(pole_from_modal(f, np.exp(logz)), part, pivot)
@@ -230,21 +223,20 @@ def _refine(win: _Window, f, zeta, part, pivot):
                 break
             mu *= 4
             if mu > 1e10:
-                return f, np.exp(logz), part, cost, JJ
+                return f, np.exp(logz), part
         gain = (cost - cost2) / cost
         f, logz, part = f2, logz2, part2
         cost, JJ, grad = win.normal_equations(pole_from_modal(f, np.exp(logz)), part, pivot)
         if gain < TOL:
             break
-    return f, np.exp(logz), part, cost, JJ
+    return f, np.exp(logz), part
 
 
-def _band_energy(win: _Window, res: np.ndarray, f: float, zeta: float) -> tuple[float, np.ndarray]:
-    """Residual energy, and the line mask, of a mode's half-power band (at least ± one line)."""
+def _band_energy(win: _Window, res: np.ndarray, f: float, zeta: float) -> float:
+    """Residual energy in a mode's half-power band (at least ± one line)."""
     half = max(zeta * f, np.median(np.diff(win.freq)) if win.n_lines > 1 else 0.0)
     lines = np.abs(win.freq - f) <= half
-    r = res.reshape(2, win.n_in, win.n_lines, win.n_out)[:, :, lines]
-    return float(np.sum(r**2)), lines
+    return float(np.sum(res.reshape(2, win.n_in, win.n_lines, win.n_out)[:, :, lines] ** 2))
 
 
 def _explains(win: _Window, f, zeta, part, r: int) -> bool:
@@ -256,7 +248,7 @@ def _explains(win: _Window, f, zeta, part, r: int) -> bool:
     """
     lam = pole_from_modal(f, zeta)
     cost, res, _, _ = win.solve(lam, part)
-    left, _ = _band_energy(win, res, f[r], zeta[r])
+    left = _band_energy(win, res, f[r], zeta[r])
     keep = np.arange(f.size) != r
     without = win.solve(lam[keep], part[:, keep])[0] if keep.any() else 0.5 * float(np.sum(win.Y**2))
     return without - cost >= 0.5 * left and zeta[r] > 1.5 * ZETA_BOUNDS[0]   # cost is ½‖r‖²
@@ -283,11 +275,10 @@ def fit_family(frf: FRFSet, poles: np.ndarray, window: tuple[float, float], core
     n_start = f.size
     # per output, 2 n_in n_lines equations against 2 unknowns per mode and 2 n_in residual terms
     cap = max(0, win.n_in * win.n_lines // 4 - n_start) if max_added is None else max_added
-    part, pivot = (_participations(win, pole_from_modal(f, zeta)) if f.size
+    part, pivot = (_participations(frf, window, pole_from_modal(f, zeta)) if f.size
                    else (np.zeros((win.n_in, 0), complex), np.zeros(0, int)))
-    cost, JJ = 0.5 * float(np.sum(win.Y**2)), np.zeros((0, 0))
     if f.size:
-        f, zeta, part, cost, JJ = _refine(win, f, zeta, part, pivot)
+        f, zeta, part = _refine(win, f, zeta, part, pivot)
     in_core = (win.freq >= core[0]) & (win.freq <= core[1])
     for _ in range(cap):
         lam = pole_from_modal(f, zeta)
@@ -303,7 +294,7 @@ def fit_family(frf: FRFSet, poles: np.ndarray, window: tuple[float, float], core
         trial = _refine(win, np.r_[f, win.freq[k]], np.r_[zeta, z0], np.c_[part, new], np.r_[pivot, new_pivot])
         if not _explains(win, trial[0], trial[1], trial[2], f.size):
             break
-        f, zeta, part, cost, JJ = trial
+        f, zeta, part = trial
         pivot = np.r_[pivot, new_pivot]
     return _result(win, window, f, zeta, part, pivot, n_start)
 
@@ -344,12 +335,9 @@ def family_windows(poles: np.ndarray, frf: FRFSet, band: tuple[float, float]) ->
     list of (window, core), each (f_lo, f_hi) in Hz
         ``core``: the span of the window's modes widened by half the margin, where growth may add modes.
     """
-    f, z = modal_from_pole(np.asarray(poles, np.complex128).reshape(-1))
+    f, half, _ = _half_widths(poles, frf, band)
     if f.size == 0:
         return []
-    freq = frf.freq_hz[frf.valid_lines() & (frf.freq_hz >= band[0]) & (frf.freq_hz <= band[1])]
-    spacing = float(np.median(np.diff(freq))) if freq.size > 1 else 0.0
-    half = np.maximum(LOCAL_HALF_WIDTHS * z * f, LOCAL_MIN_LINES * spacing)
     spans = sorted(zip(f - half, f + half, f, half, strict=True))
     merged: list[list[float]] = []
     for lo, hi, fr, h in spans:

@@ -277,6 +277,17 @@ LOCAL_HALF_WIDTHS = 10.0
 LOCAL_MIN_LINES = 20
 
 
+def _half_widths(poles: np.ndarray, frf: FRFSet, band: tuple[float, float]
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Frequencies (Hz), local half-widths ``max(LOCAL_HALF_WIDTHS · ζ f, LOCAL_MIN_LINES lines)`` (Hz) of the
+    poles, and the FRFs' finite lines above 0 Hz inside ``band`` that the widths count."""
+    f, z = modal_from_pole(np.asarray(poles, dtype=np.complex128).reshape(-1))
+    freq = frf.freq_hz
+    lines = freq[frf.valid_lines() & (freq > 0) & (freq >= band[0]) & (freq <= band[1])]
+    spacing = np.interp(f, lines, np.gradient(lines)) if lines.size > 1 else np.zeros_like(f)
+    return f, np.maximum(LOCAL_HALF_WIDTHS * z * f, LOCAL_MIN_LINES * spacing), lines
+
+
 def local_windows(
     poles: np.ndarray, frf: FRFSet, band: tuple[float, float]
 ) -> list[tuple[tuple[float, float], np.ndarray] | None]:
@@ -298,13 +309,10 @@ def local_windows(
     list of ((lo, hi), near) or None, one per mode
         ``near``: indices of the window's poles (ascending, mode r among them).
     """
-    f, z = modal_from_pole(np.asarray(poles, dtype=np.complex128).reshape(-1))
-    freq = frf.freq_hz
-    lines = freq[frf.valid_lines() & (freq > 0) & (freq >= band[0]) & (freq <= band[1])]
-    spacing = np.interp(f, lines, np.gradient(lines)) if lines.size > 1 else np.zeros_like(f)
+    f, halves, lines = _half_widths(poles, frf, band)
     out: list[tuple[tuple[float, float], np.ndarray] | None] = []
     for r in range(f.size):
-        half = max(LOCAL_HALF_WIDTHS * z[r] * f[r], LOCAL_MIN_LINES * spacing[r])
+        half = halves[r]
         window = (max(band[0], f[r] - half), min(band[1], f[r] + half))
         near = np.flatnonzero(np.abs(f - f[r]) <= 2.0 * half)
         enough = np.count_nonzero((lines >= window[0]) & (lines <= window[1])) >= 4 * near.size + 4
