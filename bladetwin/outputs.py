@@ -17,7 +17,6 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 import ema
-from ema.mac import pair_by_frequency
 from ema.numbering import rom_modal_model
 from identify.plots import (
     plot_area_fractions,
@@ -173,21 +172,16 @@ def ema_modes(res: RunResult) -> dict:
 
 
 def ema_assembly(res: RunResult) -> dict | None:
-    """summary.json's ``ema_assembly``: the full-assembly test's mode count and, for a virtual campaign, how many
-    of the truth's visible modes get a one-to-one EMA mode within 0.05 % (``ema.mac.pair_by_frequency``)."""
+    """summary.json's ``ema_assembly``: the full-assembly test's mode count and, for a virtual campaign, its scores
+    against the truth (:func:`lab.judge.assembly_scores`: one-to-one pairs within 0.05 %, shape MAC, …)."""
+    from lab.judge import assembly_scores, load_assembly_truth
+
     fits = [fit for t, fit in res.ema.values() if t.type == "assembly"]
     if not fits:
         return None
     model = fits[0].model
-    out: dict = {"n_modes": int(model.n_modes)}
-    truth = res.campaign.truth_dir
-    path = truth / "truth.json" if truth is not None else None
-    if path is not None and path.is_file():
-        visible = json.loads(path.read_text()).get("frequencies_hz", {}).get("assembly")
-        if visible:
-            rows, _ = pair_by_frequency(model.frequencies_hz, visible, 5e-4)
-            out |= {"n_visible": len(visible), "one_to_one_within_0p05pct": rows.size / len(visible)}
-    return out
+    truth = load_assembly_truth(res.campaign.truth_dir)
+    return {"n_modes": int(model.n_modes)} if truth is None else assembly_scores(model, truth)
 
 
 def _ema_section(res: RunResult, out: Path, notes: list[str]) -> dict:

@@ -13,19 +13,20 @@ from typing import NamedTuple
 import numpy as np
 
 from .errors import EMAError
-from .family import FamilyFit, resolve_families
+from .family import FamilyFit, fit_family, resolve_families, unexplained_lines
 from .frf import FRF_FORMS, FRFSet
 from .lscf import lscf
-from .lsfd import _shapes, dominance, fit_quality, local_windows, modal_model, refine_poles, synthesize
+from .lsfd import _half_widths, _shapes, dominance, fit_quality, local_windows, modal_model, refine_poles, synthesize
 from .lsrf import lsrf
 from .mac import distinct_mac, mac, mac_paired
-from .modal import ModalModel, modal_from_pole
+from .modal import ModalModel, modal_from_pole, pole_from_modal
 from .poles import PoleSet, band_data, merge_polesets, single_thread_blas
 from .selection import PoleSelection, select_auto, select_near, select_picks
 from .stabilization import StabilityCriteria, StabilizationDiagram, stabilize
 from .uncertainty import order_spread, pole_std
 
-__all__ = ["METHODS", "estimate_poles", "local_poles", "EMAResult", "fit", "mode_dominance", "merge_families"]
+__all__ = ["METHODS", "estimate_poles", "local_poles", "EMAResult", "fit", "mode_dominance", "merge_families",
+           "fill_unexplained"]
 
 log = logging.getLogger(__name__)
 
@@ -359,7 +360,8 @@ def fit(
             f_std = np.hypot(f_std, order_spread(model.frequencies_hz, model.damping_ratio, diagram))
             model = replace(model, frequency_std_hz=f_std, damping_std=z_std)
         if families and model.n_modes:
-            model = merge_families(frf, model, resolve_families(frf, model.poles, user_band, progress=progress))
+            fits = resolve_families(frf, model.poles, user_band, progress=progress)
+            model = fill_unexplained(frf, merge_families(frf, model, fits), user_band, [f.window_hz for f in fits])
             dom = mode_dominance(frf, model, diagram.criteria.mac_min) if model.n_modes else np.zeros(0)
     quality = fit_quality(frf, model) if model.n_modes else np.zeros((frf.n_outputs, frf.n_inputs))
     log.info("%s: %d modes in %.6g-%.6g Hz", diagram.method, model.n_modes, *diagram.band_hz)
@@ -424,14 +426,90 @@ def merge_families(frf: FRFSet, model: ModalModel, fits: Sequence[FamilyFit]) ->
         merged = modal_model(frf, poles[order], model.band_hz, quality=None if quality is None else quality[order],
                              method=model.method + "+families")
     structured = mark[order]
+    shapes = merged.shapes.copy()
     if structured.any():
         # the structured modes' shapes: their rank-one residues, scaled as the ordinary ones
         idx = np.argsort(np.abs(new), kind="stable")
-        phi, _, _ = _shapes(np.concatenate(res)[idx], new[idx], frf)
-        shapes = merged.shapes.copy()
-        shapes[:, structured] = phi
-        merged = replace(merged, shapes=shapes)
+        shapes[:, structured] = _shapes(np.concatenate(res)[idx], new[idx], frf)[0]
+    # modes of an earlier structured fit keep their rank-one shapes: this LSFD's residues are free ones
+    earlier = np.r_[_structured(model)[keep_ord], np.zeros(new.size, bool)][order]
+    source = np.r_[np.arange(keep_ord.sum()), np.full(new.size, -1)][order]
+    shapes[:, earlier] = model.shapes[:, keep_ord][:, source[earlier]]
+    merged = replace(merged, shapes=shapes)
     return replace(merged, frequency_std_hz=f_std[order], damping_std=z_std[order])
+
+
+def fill_unexplained(frf: FRFSet, model: ModalModel, band: tuple[float, float],
+                     tried: Sequence[tuple[float, float]] = ()) -> ModalModel:
+    """Open a structured fit wherever the data hold modes that ``model`` misses (the order from the data).
+
+    A fit at a fixed model order finds nothing of a family whose stable poles need a higher order, and a window
+    grown from the found modes never reaches it. Here the line that :func:`ema.family.unexplained_lines` ranks
+    highest above its noise threshold gets a window (the local half-width rule of :func:`ema.lsfd.local_windows`
+    at the model's median damping). :func:`ema.family.fit_family` grows it from the model's modes inside it, on
+    the data less the model's other modes (so that a strong neighbour's tail does not draw the new pole away);
+    a grown window is merged in (:func:`merge_families`) when one of its modes sits on the line that opened
+    it, and the residual is scanned again. Each try uses up its window's core, so the loop ends; it
+    ends early when no line stands above the threshold.
+
+    Parameters
+    ----------
+    frf : FRFSet
+    model : ModalModel
+        With residues and ``frequency_std_hz`` (at least one mode: its damping sets the windows' width).
+    band : (f_lo, f_hi)
+        Hz.
+    tried : sequence of (f_lo, f_hi)
+        Hz ranges already grown (the windows of :func:`ema.family.resolve_families`): not tried again.
+    """
+    tried = list(tried)
+    scan = unexplained_lines(frf, model, band) if model.n_modes else None
+    while scan is not None:
+        freq, z, threshold, floor = scan
+        z = z.copy()
+        for lo, hi in tried:
+            z[(freq >= lo) & (freq <= hi)] = 0.0
+        k = int(np.argmax(z))
+        if z[k] <= threshold:
+            break
+        zeta = float(np.median(model.damping_ratio))
+        _, half, _ = _half_widths(pole_from_modal(np.array([freq[k]]), np.array([zeta])), frf, band)
+        window = (max(band[0], freq[k] - half[0]), min(band[1], freq[k] + half[0]))
+        core = (max(window[0], freq[k] - half[0] / 2), min(window[1], freq[k] + half[0] / 2))
+        tried.append(core)
+        f = model.frequencies_hz
+        inside = (f >= window[0]) & (f <= window[1])
+        # weighted by the noise floor: a mode that only a few quiet FRFs see (a disk mode at the blade tips)
+        # counts by its own noise there, not under the strong FRFs' noise
+        scale = _rank_one(floor)
+        data = _without(frf, model, ~inside)
+        fit = fit_family(replace(data, H=data.H / scale[:, :, None]), model.poles[inside], window, core, zeta0=zeta)
+        fit = replace(fit, residues=fit.residues * scale[None])
+        log.info("unexplained %.6g Hz (z %.3g > %.3g): %d modes -> %d", freq[k], z[k], threshold, fit.n_start,
+                 fit.n_modes)
+        f_new, z_new = modal_from_pole(fit.poles)
+        # kept only if a mode of it sits on the line that opened the window (within max(2 ζ f, 2 lines), as
+        # merge_families matches): a pole that wandered off to fit something else in the window is noise
+        spacing = float(np.median(np.diff(freq))) if freq.size > 1 else 0.0
+        if fit.n_modes > fit.n_start and np.any(np.abs(f_new - freq[k]) <= np.maximum(2 * z_new * f_new,
+                                                                                          2 * spacing)):
+            model = merge_families(frf, model, [fit])
+            scan = unexplained_lines(frf, model, band)
+    return model
+
+
+def _rank_one(floor: np.ndarray) -> np.ndarray:
+    """The nearest ``a_o b_i`` to a positive (n_outputs, n_inputs) array in log scale: a weighting of the FRFs that
+    the rank-one residues ``ψ l^T`` absorb exactly (ψ_o scales by a_o, l_i by b_i)."""
+    lg = np.log(floor)
+    return np.exp(lg.mean(axis=1, keepdims=True) + lg.mean(axis=0, keepdims=True) - lg.mean())
+
+
+def _structured(model: ModalModel) -> np.ndarray:
+    """Which modes came from a structured fit (:func:`merge_families` gives them no selection quality)."""
+    if model.quality is None:
+        return np.zeros(model.n_modes, bool)
+    return np.isnan(np.asarray(model.quality, dtype=np.float64))
 
 
 def _padded(frf: FRFSet, band: tuple[float, float], pad: float) -> tuple[float, float]:

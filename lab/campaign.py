@@ -11,6 +11,9 @@ assembly/assembly.uff         the full bladed disk
 films/joint_NN_L.png, _R.png  film scans of the known joints
 truth/truth.json              what the identification never sees (seed, deltas, exact frequencies, damping)
 truth/patterns.npz            true contact grids L, R: bool, shape (n_blades, rows, cols)
+truth/assembly_modes.npz      the full assembly's visible modes: frequencies_hz (n,), exact real shapes at
+                              the test's outputs (n_outputs, n), the blades' share of each mode's kinetic
+                              energy (n,), and the outputs' (node, direction), (n_outputs, 2)
 truth/films/                  every flank's film scan
 ```
 
@@ -21,7 +24,6 @@ failed or interrupted run never leaves a half-written campaign.
 from __future__ import annotations
 
 import json
-import math
 import multiprocessing
 import os
 import shutil
@@ -49,7 +51,7 @@ from .truth import (
     solve_truth,
 )
 
-__all__ = ["CampaignSpec", "CampaignInfo", "default_known_joints", "ema_max_order", "simulate_campaign"]
+__all__ = ["CampaignSpec", "CampaignInfo", "default_known_joints", "simulate_campaign"]
 
 #: Modes each test must cover (issue 9 item 4): free blade, free disk, disk–one-blade; the full assembly
 #: covers the first three blade-mode families (3 × n_blades modes) and the disk modes among them.
@@ -60,17 +62,6 @@ FULL_INPUTS = 6
 #: Spectral lines per test: the bundled campaign must stay small (≤ 40 MB; 8 bytes a complex value in
 #: single-precision UFF 58b).
 MAX_LINES = {"blade": 4000, "disk": 4000, "d1b": 2500, "assembly": 3500}
-
-
-def ema_max_order(n_modes: int) -> int:
-    """Highest model order a lab would ask of the pole estimator for a test with about ``n_modes`` modes.
-
-    The estimators' default (60) suits the component tests. A spectrum with many modes needs about two
-    poles per mode and spare ones for noise, or the stable poles of whole clusters never appear: on the
-    default academic campaign (18 blades, 49 visible modes) the full assembly gave 19 modes at order 60,
-    26 at 100 and 33 at 120 and at 150 (docs/campaign.md). The manifest records the choice (``max_order``).
-    """
-    return max(60, 10 * math.ceil(2.2 * n_modes / 10))
 
 
 #: FilmMeta fields kept out of the manifest: the misregistration applied to the film is truth.
@@ -303,6 +294,7 @@ class _CampaignWriter:
         for key in _TRUTH_TEST_KEYS:
             self.truth[key] = {"blades": [], "disk": None, "d1b": [], "assembly": None}
         self.n_files = 0
+        self.assembly_modes: dict | None = None
         self.presolved: dict = {}
         self.workers = max(1, min(2, os.cpu_count() or 1))
 
@@ -344,6 +336,10 @@ class _CampaignWriter:
         visible = np.flatnonzero(in_band & (snr >= MIN_SNR))
         result = {"frequencies_hz": f[visible].tolist(), "damping_ratios": zeta[visible].tolist(),
                   "all_frequencies_hz": f[in_band].tolist(), "band_hz": [lo, hi]}
+        if kind == "assembly":  # the exact shapes, to judge the EMA's (truth only: no fit ever reads them)
+            self.assembly_modes = {"frequencies_hz": f[visible], "shapes": modes.meas_shapes[:, visible],
+                                   "blade_energy": modes.blade_energy[visible],
+                                   "outputs": np.array(frf.outputs, dtype=np.int64).reshape(-1, 2)}
         if kind == "disk":
             disk_rows = [k for k, lab in enumerate(meas_labels) if lab[0] == "disk"]
             result["nodal_diameters"] = nodal_diameters(modes.meas_shapes[disk_rows][:, visible]).tolist()
@@ -398,8 +394,8 @@ class _CampaignWriter:
         n_full = FULL_FAMILIES * self.params.n_blades + DISK_MODES
         self.record("assembly", self.run_test("assembly", "assembly/assembly.uff", None, True, n_full, _spread_tips,
                                               families=FULL_FAMILIES))
-        self.manifest["tests"].append({"type": "assembly", "file": "assembly/assembly.uff",
-                                       "max_order": ema_max_order(n_full)})
+        # no max_order hint: the EMA's families fit finds the order from the data (docs/ema.md)
+        self.manifest["tests"].append({"type": "assembly", "file": "assembly/assembly.uff"})
         self.truth["blade_deltas_pct"] = _blade_deltas_pct(self.truth["frequencies_hz"]["blades"])
 
     def films(self) -> None:
@@ -426,6 +422,9 @@ class _CampaignWriter:
         R = np.stack([p.R for p in self.patterns])
         with open(self.root / "truth" / "patterns.npz", "wb") as fh:
             np.savez_compressed(fh, L=L, R=R)
+        if self.assembly_modes is not None:
+            with open(self.root / "truth" / "assembly_modes.npz", "wb") as fh:
+                np.savez_compressed(fh, **self.assembly_modes)
         (self.root / "truth" / "truth.json").write_text(json.dumps(self.truth, indent=1), encoding="utf-8")
         (self.root / "campaign.toml").write_text(tomli_w.dumps(self.manifest), encoding="utf-8")
         return self.n_files

@@ -154,9 +154,9 @@ def campaign_sources(campaign, bd, store, opts: RunOptions) -> dict[str, Source]
 def _ema_nodes(p: Pipeline, campaign) -> None:
     for t in campaign.tests:
         name = test_name(t)
-        # version 2 of the assembly's fit: dense families resolved (ema.fit(families=True))
+        # version 3 of the assembly's fit: dense families resolved (ema.fit(families=True)), missed ones filled in
         p.add(Node(f"ema/{name}", measured.fit_test, {"test": f"test/{name}"}, priority=EMA_PRIORITY.get(t.type, 50),
-                   label=f"EMA {name}", version=2 if t.type == "assembly" else 1))
+                   label=f"EMA {name}", version=3 if t.type == "assembly" else 1))
     blades = {test_name(t): f"ema/{test_name(t)}" for t in campaign.of_type("blade")}
     p.add(Node("blade_table", measured.blade_table, blades, where="parent"))
 

@@ -144,3 +144,18 @@ def test_plot_families_one_panel_per_window(family, fits):
         n = int(np.count_nonzero((model.frequencies_hz >= lo) & (model.frequencies_hz <= hi)))
         assert ax.get_title().endswith(f"{n} modes")
     assert fig.axes[0].get_title().endswith("10 modes")
+
+
+def test_a_second_merge_keeps_the_structured_shapes(family, fits):
+    """merge_families refits free residues for the merged poles; the modes of an earlier structured fit keep
+    their rank-one shapes (a second merge, as the residual scan makes, once mixed the family's shapes again)."""
+    from ema.fit import merge_families
+
+    frf = family[0]
+    model = fits[1].model
+    structured = np.isnan(model.quality)
+    assert structured.sum() >= 8
+    again = merge_families(frf, model, [fit_family(frf, model.poles[-1:], (570.0, 610.0), (580.0, 600.0))])
+    keep = np.isin(np.round(again.frequencies_hz, 9), np.round(model.frequencies_hz[structured], 9))
+    assert keep.sum() == structured.sum()
+    assert np.array_equal(again.shapes[:, keep], model.shapes[:, structured])

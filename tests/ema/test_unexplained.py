@@ -1,0 +1,100 @@
+"""The order from the data (issue 31, item 2): modes a fit missed are found where the residual stands above noise.
+
+The truth: three strong modes seen at every output, and two weak ones between them that only two of 24
+outputs see (as a disk mode at a bladed disk's tips), with the virtual rig's noise (0.5 % proportional,
+0.2 % of each FRF's RMS additive). The weak modes stand far above the floor of their two FRFs and vanish in
+any sum over all FRFs.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from ema import FRFSet
+from ema.family import unexplained_lines
+from ema.fit import fill_unexplained
+from ema.lsfd import modal_model
+from ema.mac import mac_paired, pair_by_frequency
+from ema.modal import pole_from_modal
+from ema.uncertainty import pole_std
+
+from .synth import modal_frfs
+
+N_OUT, N_IN = 24, 3
+FN = np.array([300.0, 352.0, 410.0, 455.0, 520.0])
+ZETA = np.array([0.003, 0.001, 0.002, 0.0012, 0.003])
+WEAK = np.array([False, True, False, True, False])
+BAND = (260.0, 560.0)
+
+
+def _case(seed: int = 5):
+    rng = np.random.default_rng(seed)
+    phi = rng.standard_normal((N_OUT, FN.size))
+    phi[:N_IN] = np.sign(phi[:N_IN]) * rng.uniform(0.7, 1.3, (N_IN, FN.size))
+    for r in np.flatnonzero(WEAK):   # seen by two outputs (and weakly by a reference, which excites it)
+        phi[:, r] = 0.0
+        phi[rng.choice(np.arange(N_IN, N_OUT), 2, replace=False), r] = 1.0
+        phi[0, r] = 0.05
+    freq = 0.25 * np.arange(1000, 2321)   # 250-580 Hz
+    H = modal_frfs(freq, FN, ZETA, phi, phi[:N_IN], "mobility")
+    rms = np.sqrt(np.mean(np.abs(H) ** 2, axis=2, keepdims=True))
+
+    def noise():
+        return (rng.standard_normal(H.shape) + 1j * rng.standard_normal(H.shape)) / np.sqrt(2)
+
+    H = H * (1 + 0.005 * noise()) + 0.002 * rms * noise()
+    outputs = [(k + 1, 3) for k in range(N_OUT)]
+    return FRFSet(freq, H, outputs, outputs[:N_IN], form="mobility"), phi
+
+
+def _model(frf: FRFSet, keep: np.ndarray):
+    """The LSFD model at some of the true poles, with standard deviations (as ema.fit returns it)."""
+    model = modal_model(frf, pole_from_modal(FN[keep], ZETA[keep]), BAND)
+    f_std, z_std = pole_std(frf, model.poles, BAND)
+    from dataclasses import replace
+
+    return replace(model, frequency_std_hz=f_std, damping_std=z_std)
+
+
+@pytest.fixture(scope="module")
+def case():
+    return _case()
+
+
+def test_the_weak_modes_stand_out_only_where_the_model_lacks_them(case):
+    frf, _ = case
+    freq, z, threshold, floor = unexplained_lines(frf, _model(frf, ~WEAK), BAND)
+    above = freq[z > threshold]
+    assert above.size, "the missing modes must be flagged"
+    # every flagged line lies nearer a missing mode than any modelled one, and each missing mode's own line
+    # is flagged
+    nearest = np.argmin(np.abs(above[:, None] - FN[None, :]), axis=1)
+    assert np.all(WEAK[nearest]), above[~WEAK[nearest]]
+    for f in FN[WEAK]:
+        assert np.any(np.abs(above - f) <= 2 * 0.25), f
+    assert floor.shape == (N_OUT, N_IN) and np.all(floor > 0)
+
+
+def test_noise_alone_stays_below_the_threshold(case):
+    frf, _ = case
+    freq, z, threshold, _ = unexplained_lines(frf, _model(frf, np.ones(FN.size, bool)), BAND)
+    assert np.max(z) <= threshold, freq[np.argmax(z)]
+
+
+def test_fill_unexplained_finds_the_missing_modes_and_nothing_else(case):
+    frf, phi = case
+    filled = fill_unexplained(frf, _model(frf, ~WEAK), BAND)
+    rows, cols = pair_by_frequency(filled.frequencies_hz, FN, 5e-4)
+    assert filled.n_modes == FN.size and rows.size == FN.size, filled.frequencies_hz
+    # the found modes' shapes are the truth's (rank-one residues, scaled back from the noise weighting)
+    weak = np.flatnonzero(WEAK[cols])
+    m = mac_paired(filled.shapes[:, rows[weak]].T, phi[:, cols[weak]].T)
+    assert np.all(m >= 0.95), m
+    assert np.all(np.isfinite(filled.frequency_std_hz))
+
+
+def test_a_complete_model_is_left_alone(case):
+    frf, _ = case
+    model = _model(frf, np.ones(FN.size, bool))
+    assert fill_unexplained(frf, model, BAND).n_modes == FN.size
