@@ -336,7 +336,7 @@ def picks_from_picker(
                  n_bands=n_bands, note=note)
 
 
-def fit_with_picks(frf: FRFSet, picks: Picks, freq_tol: float = 0.01) -> EMAResult:
+def fit_with_picks(frf: FRFSet, picks: Picks, freq_tol: float = 0.01, elsewhere: dict | None = None) -> EMAResult:
     """Fit FRFs with the hand picks of a picks file instead of the automatic selection.
 
     Calls ``ema.fit(frf, method=picks.method, band=picks.band_hz, max_order=picks.max_order,
@@ -352,11 +352,17 @@ def fit_with_picks(frf: FRFSet, picks: Picks, freq_tol: float = 0.01) -> EMAResu
     freq_tol : float
         Largest relative distance between a pick and the pole it takes (the picks come from a diagram
         of the same data, so they should match to rounding; 1 % leaves room for another machine's BLAS).
+    elsewhere : dict, optional
+        Where the picks' band is narrower than the FRFs' lines (picks of one mode family), the modes outside it
+        come from the automatic ``ema.fit(frf, **elsewhere)``, e.g. ``{"families": True}``; all modes then
+        share one LSFD over the automatic fit's band, each keeping its own shape and standard deviations.
+        None: the picked band's modes only.
 
     Returns
     -------
     EMAResult
-        With one mode per pick.
+        With one mode per pick (and, with ``elsewhere``, the automatic fit's modes outside the picks' band; the
+        diagram is then the automatic fit's).
 
     Raises
     ------
@@ -398,4 +404,38 @@ def fit_with_picks(frf: FRFSet, picks: Picks, freq_tol: float = 0.01) -> EMAResu
     if result.model.n_modes != len(picks.picks):
         raise EMAError(f"{where}: {len(picks.picks)} picks gave {result.model.n_modes} modes inside the band "
                        f"({d.band_hz[0]:g}-{d.band_hz[1]:g} Hz); a pick at a band edge?")
+    if elsewhere is not None and _narrower(frf, picks.band_hz):
+        return _with_picked_band(frf, fit(frf, **elsewhere), result, picks.band_hz)
     return result
+
+
+def _narrower(frf: FRFSet, band: tuple[float, float] | None) -> bool:
+    """Does ``band`` leave out some of the FRFs' finite lines above 0 Hz?"""
+    if band is None:
+        return False
+    lines = frf.freq_hz[frf.valid_lines() & (frf.freq_hz > 0)]
+    return bool(lines.size) and (lines[0] < band[0] or lines[-1] > band[1])
+
+
+def _with_picked_band(frf: FRFSet, auto: EMAResult, picked: EMAResult, band: tuple[float, float]) -> EMAResult:
+    """The automatic fit's modes outside ``band`` with the picked ones inside, in one LSFD model."""
+    from dataclasses import replace
+
+    from .fit import mode_dominance
+    from .lsfd import fit_quality, modal_model
+
+    f = auto.model.frequencies_hz
+    parts = (auto.model.take(np.flatnonzero((f < band[0]) | (f > band[1]))), picked.model)
+    poles = np.concatenate([m.poles for m in parts])
+    order = np.argsort(np.abs(poles), kind="stable")
+
+    def joined(name: str) -> np.ndarray:
+        return np.concatenate([np.full(m.n_modes, np.nan) if getattr(m, name) is None
+                               else np.asarray(getattr(m, name), float) for m in parts])[order]
+
+    model = modal_model(frf, poles[order], auto.model.band_hz, method=f"{auto.model.method}+picks")
+    model = replace(model, shapes=np.concatenate([m.shapes for m in parts], axis=1)[:, order],
+                    quality=joined("quality"), frequency_std_hz=joined("frequency_std_hz"),
+                    damping_std=joined("damping_std"))
+    dom = mode_dominance(frf, model, auto.diagram.criteria.mac_min)
+    return replace(auto, model=model, quality=fit_quality(frf, model), dominance=dom)

@@ -265,3 +265,25 @@ def test_save_onto_a_folder_is_refused(picks, tmp_path):
     with pytest.raises(EMAError) as err:
         save_picks(tmp_path, picks)
     assert str(tmp_path) in str(err.value) and "\n" not in str(err.value)
+
+
+def test_picks_of_one_band_with_the_automatic_fit_elsewhere(frf):
+    """Picks covering one band (a mode family of a full assembly) and ``elsewhere``: the modes outside the band
+    come from the automatic fit, the ones inside from the picks, all against the truth."""
+    band = (400.0, 550.0)
+    zoom = fit(frf, "lsrf", band=band, max_order=ORDER)
+    one = Picks(file="assembly.uff", method="lsrf", band_hz=band, max_order=ORDER,
+                picks=_top_order_picks(zoom.diagram, FN[2:]))
+    alone = fit_with_picks(frf, one)
+    assert np.allclose(alone.model.frequencies_hz, FN[2:], rtol=2e-3)
+    both = fit_with_picks(frf, one, elsewhere={"max_order": ORDER})
+    assert np.allclose(np.sort(both.model.frequencies_hz), FN, rtol=2e-3), both.model.frequencies_hz
+    # the picked mode is the one of the picks' fit, with its standard deviation; the others the automatic fit's
+    k = int(np.argmin(np.abs(both.model.frequencies_hz - FN[2])))
+    assert np.isclose(both.model.frequencies_hz[k], alone.model.frequencies_hz[0], rtol=1e-12)
+    assert both.model.frequency_std_hz[k] == alone.model.frequency_std_hz[0]
+    assert both.quality.shape == (frf.n_outputs, frf.n_inputs) and np.all(both.quality > 0.9)
+    # picks that cover every line are the whole answer, with or without elsewhere
+    full = Picks(file="assembly.uff", method="lsrf", band_hz=None, max_order=ORDER,
+                 picks=_top_order_picks(fit(frf, "lsrf", max_order=ORDER).diagram, FN[KEEP]))
+    assert fit_with_picks(frf, full, elsewhere={"max_order": ORDER}).model.n_modes == len(KEEP)
