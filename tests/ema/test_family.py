@@ -159,3 +159,19 @@ def test_a_second_merge_keeps_the_structured_shapes(family, fits):
     keep = np.isin(np.round(again.frequencies_hz, 9), np.round(model.frequencies_hz[structured], 9))
     assert keep.sum() == structured.sum()
     assert np.array_equal(again.shapes[:, keep], model.shapes[:, structured])
+
+
+def test_standard_deviations_cover_the_truth(family, fits):
+    """The truth lies within ± 2 standard deviations for at least 85 % of the family's modes, pooled over three
+    noise and truth draws (measured 0.92; White's sandwich alone, whose meat rests on the one or two peak lines of
+    each lightly damped mode, gave 0.78)."""
+    z = []
+    cases = [(family[1], fits[1].model)]
+    for seed in (4, 5):
+        fn, zeta, phi = _truth(seed)
+        cases.append((fn, fit(_frfs(fn, zeta, phi), band=(400.0, 620.0), families=True).model))
+    for fn, model in cases:
+        rows, cols = pair_by_frequency(model.frequencies_hz, fn, TOL)
+        z.append(np.abs(model.frequencies_hz[rows] - fn[cols]) / model.frequency_std_hz[rows])
+    z = np.concatenate(z)
+    assert z.size >= 30 and np.mean(z <= 2) >= 0.85, np.round(z, 1)
