@@ -114,8 +114,9 @@ def _families_figure(name: str, test, fit, frf, out: Path) -> list[dict]:
     if not windows:
         return []
     return [{"file": _fig(plot_families(frf, fit.model, windows), out / f"families_{name}.png"),
-             "caption": f"Dense mode families of {test.file.name}: the RMS of all its FRFs (black) against the "
-                        "identified modal model (red, dashed), each mode a blue line."}]
+             "caption": f"Dense mode families of {test.file.name}: the RMS over all its FRFs, each divided by its "
+                        "own median in the window (so that modes seen by a few points show), measured (black) "
+                        "against the identified modal model (red, dashed), each mode a blue line."}]
 
 
 def _method_label(fit) -> str:

@@ -28,7 +28,9 @@ This module fits that model window by window:
   the noise of its own band.
 
 The result replaces the window's modes; their shapes come from ``ψ_r l_rᵀ`` and their standard deviations
-from the sandwich covariance of the structured fit (the lines as clusters, as :func:`ema.uncertainty.pole_std`).
+from the larger of two sandwich covariances of the structured fit: White's (the lines as clusters, as
+:func:`ema.uncertainty.pole_std`) and one whose meat comes from residuals drawn from the window's noise model
+(:func:`_result`). :func:`unexplained_lines` finds where a model leaves modes out (``ema.fit.fill_unexplained``).
 """
 
 from __future__ import annotations
@@ -181,11 +183,14 @@ class _Window:
         N = np.einsum("rao,sbo->rsab", M, M)
         JJ = np.einsum("kalb,klab->kl", G, N[owner_][:, owner_])
         if scores:
-            R = res[None] if draws is None else draws
-            RM = np.einsum("dxo,rao->dxra", R, M)                                # (draws, rows, n, 2)
-            per_row = -np.einsum("xka,dxka->dxk", E.reshape(-1, m, 2), RM[:, :, owner_, :])
-            per_line = per_row.reshape(len(R), 2, self.n_in, self.n_lines, m).sum(axis=(1, 2))
-            return cost, JJ, per_line[0] if draws is None else per_line
+            Er = E.reshape(-1, m, 2)
+
+            def per_line(r: np.ndarray) -> np.ndarray:    # one residual at a time: bounded memory
+                RM = np.einsum("xo,rao->xra", r, M)                              # (rows, n, 2)
+                per_row = -np.einsum("xka,xka->xk", Er, RM[:, owner_, :])
+                return per_row.reshape(2, self.n_in, self.n_lines, m).sum(axis=(0, 1))
+
+            return cost, JJ, per_line(res) if draws is None else np.stack([per_line(r) for r in draws])
         grad = -np.einsum("kao,kao->k", (E.T @ res).reshape(m, 2, -1), M[owner_])
         return cost, JJ, grad
 

@@ -305,7 +305,9 @@ def fit(
         Resolve dense mode families (:func:`ema.family.resolve_families`): every window of two or more of the
         selected modes is refitted with rank-one residues and grown while a new mode explains more than the
         noise of its band. Each mode is then taken from the fit that gives it the smaller standard deviation
-        (:func:`merge_families`). For tests of a whole mistuned bladed disk.
+        (:func:`merge_families`), and wherever the residual still stands above the noise a window is opened and
+        grown the same way (:func:`fill_unexplained`), so the modes the pole estimator missed at ``max_order``
+        are found too. For tests of a whole mistuned bladed disk.
 
     Returns
     -------
@@ -378,7 +380,8 @@ def merge_families(frf: FRFSet, model: ModalModel, fits: Sequence[FamilyFit]) ->
     residues); otherwise the structured mode replaces it. An ordinary mode with no structured counterpart is
     kept, and structured modes that correspond to no ordinary mode are new modes; ordinary modes are matched
     closest first, each structured mode to one at most. Shapes and standard deviations of the structured modes
-    come from their rank-one residues and sandwich covariance (:class:`ema.family.FamilyFit`).
+    come from their rank-one residues and sandwich covariance (:class:`ema.family.FamilyFit`); modes of an
+    earlier merge's structured fits (no selection quality) keep their shapes.
 
     Parameters
     ----------

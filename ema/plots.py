@@ -112,8 +112,13 @@ def plot_frf_fit(frf: FRFSet, model: ModalModel, output: int = 0, input: int = 0
 
 
 def plot_families(frf: FRFSet, model: ModalModel, windows: list[tuple[float, float]]) -> Figure:
-    """One panel per dense window: the RMS over all FRFs of the measurement and of the model's synthesis, with
-    a line at each mode (the zoom a whole-band stabilization diagram cannot show).
+    """One panel per dense window: the measurement and the model's synthesis, with a line at each mode (the zoom a
+    whole-band stabilization diagram cannot show).
+
+    Each FRF is divided by its own median magnitude in the window before the RMS over all FRFs is taken. Why: a
+    plain RMS is the strongest FRFs' curve, and modes that only a few response points see (disk modes at blade
+    tips, found by :func:`ema.fit.fill_unexplained`) vanish under the tails of strong ones; relative to each FRF's
+    own level, they stand out as they do in the FRFs that see them. The model is divided by the same medians.
 
     Parameters
     ----------
@@ -130,8 +135,10 @@ def plot_families(frf: FRFSet, model: ModalModel, windows: list[tuple[float, flo
         ax = fig.add_subplot(1, n, k + 1)
         mask = (data.freq_hz >= lo) & (data.freq_hz <= hi)
         f = data.freq_hz[mask]
-        rms = np.sqrt(np.mean(np.abs(data.H[:, :, mask]) ** 2, axis=(0, 1)))
-        syn = np.sqrt(np.mean(np.abs(synthesize(model, f).H) ** 2, axis=(0, 1)))
+        H = data.H[:, :, mask]
+        level = np.maximum(np.median(np.abs(H), axis=2, keepdims=True), np.finfo(float).tiny)
+        rms = np.sqrt(np.mean(np.abs(H / level) ** 2, axis=(0, 1)))
+        syn = np.sqrt(np.mean(np.abs(synthesize(model, f).H / level) ** 2, axis=(0, 1)))
         ax.semilogy(f, rms, color="k", linewidth=0.9, label="measured")
         ax.semilogy(f, syn, color="tab:red", linewidth=0.9, linestyle="--", label="model")
         inside = model.frequencies_hz[(model.frequencies_hz >= lo) & (model.frequencies_hz <= hi)]
@@ -140,7 +147,7 @@ def plot_families(frf: FRFSet, model: ModalModel, windows: list[tuple[float, flo
         ax.set_title(f"{lo:.5g}–{hi:.5g} Hz: {inside.size} modes", fontsize="small")
         ax.set_xlabel("frequency [Hz]")
         if k == 0:
-            ax.set_ylabel(f"RMS |H| over all FRFs ({model.form})")
+            ax.set_ylabel("RMS over FRFs of |H| / its median here")
             ax.legend(fontsize="small")
     fig.tight_layout()
     return fig

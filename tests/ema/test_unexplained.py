@@ -98,3 +98,19 @@ def test_a_complete_model_is_left_alone(case):
     frf, _ = case
     model = _model(frf, np.ones(FN.size, bool))
     assert fill_unexplained(frf, model, BAND).n_modes == FN.size
+
+
+def test_the_family_zoom_shows_modes_that_few_points_see(case):
+    """plot_families divides each FRF by its own median: a mode seen by 2 of 24 outputs stands higher above the
+    curve beside it than in a plain RMS over the FRFs (measured: 1.54 and 1.29 against 1.33 and 1.12)."""
+    from ema.plots import plot_families
+
+    frf, _ = case
+    model = _model(frf, np.ones(FN.size, bool))
+    for f0 in FN[WEAK]:
+        fig = plot_families(frf, model, [(f0 - 8.0, f0 + 8.0)])
+        x, y = fig.axes[0].lines[0].get_data()
+        shown = y[np.argmin(np.abs(x - f0))] / np.median(y)
+        mask = (frf.freq_hz >= f0 - 8.0) & (frf.freq_hz <= f0 + 8.0)
+        plain = np.sqrt(np.mean(np.abs(frf.H[:, :, mask]) ** 2, axis=(0, 1)))
+        assert shown >= 1.25 and shown > 1.1 * plain[np.argmin(np.abs(frf.freq_hz[mask] - f0))] / np.median(plain)
