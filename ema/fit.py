@@ -427,7 +427,7 @@ def merge_families(frf: FRFSet, model: ModalModel, fits: Sequence[FamilyFit]) ->
     order = np.argsort(np.abs(poles), kind="stable")
     with single_thread_blas():
         merged = modal_model(frf, poles[order], model.band_hz, quality=None if quality is None else quality[order],
-                             method=model.method + "+families")
+                             method=_with_tag(model.method, "+families"))
     structured = mark[order]
     shapes = merged.shapes.copy()
     if structured.any():
@@ -499,6 +499,11 @@ def fill_unexplained(frf: FRFSet, model: ModalModel, band: tuple[float, float],
             model = merge_families(frf, model, [fit])
             scan = unexplained_lines(frf, model, band)
     return model
+
+
+def _with_tag(method: str, tag: str) -> str:
+    """``method`` with ``tag`` appended once (merges repeat: the residual scan merges window by window)."""
+    return method if method.endswith(tag) else method + tag
 
 
 def _rank_one(floor: np.ndarray) -> np.ndarray:

@@ -8,6 +8,8 @@ any sum over all FRFs.
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -52,7 +54,6 @@ def _model(frf: FRFSet, keep: np.ndarray):
     """The LSFD model at some of the true poles, with standard deviations (as ema.fit returns it)."""
     model = modal_model(frf, pole_from_modal(FN[keep], ZETA[keep]), BAND)
     f_std, z_std = pole_std(frf, model.poles, BAND)
-    from dataclasses import replace
 
     return replace(model, frequency_std_hz=f_std, damping_std=z_std)
 
@@ -114,3 +115,11 @@ def test_the_family_zoom_shows_modes_that_few_points_see(case):
         mask = (frf.freq_hz >= f0 - 8.0) & (frf.freq_hz <= f0 + 8.0)
         plain = np.sqrt(np.mean(np.abs(frf.H[:, :, mask]) ** 2, axis=(0, 1)))
         assert shown >= 1.25 and shown > 1.1 * plain[np.argmin(np.abs(frf.freq_hz[mask] - f0))] / np.median(plain)
+
+
+def test_repeated_merges_label_the_method_once(case):
+    """Each window the scan fills is one merge; the model's method says "+families" once (the report's title)."""
+    frf, _ = case
+    model = _model(frf, ~WEAK)
+    filled = fill_unexplained(frf, replace(model, method="lsrf"), BAND)
+    assert filled.method == "lsrf+families", filled.method
