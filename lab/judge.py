@@ -92,7 +92,10 @@ def assembly_scores(model: ModalModel, truth: AssemblyTruth) -> dict:
     far = int(sum(np.min(np.abs(x - fa) / fa) > FAR_RTOL for x in f)) if fa.size else int(f.size)
     a, b = pair_by_frequency(f, ft, FAR_RTOL)
     sd = model.frequency_std_hz[a] if model.frequency_std_hz is not None else np.full(a.size, np.nan)
-    z = np.abs(f[a] - ft[b]) / sd
+    # a zero or missing standard deviation covers no error: such a mode counts as outside ± 2 σ
+    ok = np.isfinite(sd) & (sd > 0)
+    z = np.full(a.size, np.inf)
+    z[ok] = np.abs(f[a] - ft[b])[ok] / sd[ok]
     out = {"n_modes": int(model.n_modes), "n_visible": int(ft.size), "n_within_0p05pct": int(rows.size),
            "one_to_one_within_0p05pct": rows.size / ft.size if ft.size else None,
            "n_more_than_1pct_off": far, "within_2sd": float(np.mean(z <= 2)) if z.size else None}

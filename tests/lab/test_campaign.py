@@ -172,3 +172,17 @@ def test_the_assembly_truth_shapes_judge_the_ema(campaign):
     assert np.median(m) >= 0.99 and abs(np.mean(m) - scores["mean_shape_mac"]) < 1e-12, m
     shuffled = type(at)(at.frequencies_hz, at.all_frequencies_hz, at.shapes[:, ::-1], at.blade_energy, at.outputs)
     assert assembly_scores(model, shuffled)["mean_shape_mac"] < scores["mean_shape_mac"]
+
+
+def test_the_families_fit_keeps_no_pole_at_the_damping_bound(campaign):
+    """On this 6-blade campaign the families fit once kept modes whose damping refinement drove to the upper bound
+    (5 %), 1.2 % and 2.8 % from every true mode; they are dropped, and the fit still pairs 19 of the 20 visible
+    modes within 0.05 % (the ordinary fit: 20; docs/ema.md, limits)."""
+    from ema.family import ZETA_BOUNDS
+    from lab.judge import assembly_scores, load_assembly_truth
+
+    out, _ = campaign
+    model = ema.fit(ema.read_uff(out / "assembly" / "assembly.uff"), families=True).model
+    assert np.all(model.damping_ratio < ZETA_BOUNDS[1] / 1.5), model.damping_ratio
+    scores = assembly_scores(model, load_assembly_truth(out / "truth"))
+    assert scores["n_within_0p05pct"] >= scores["n_visible"] - 1 and scores["n_more_than_1pct_off"] <= 1, scores
