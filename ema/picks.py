@@ -33,7 +33,7 @@ import math
 import numbers
 import os
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -41,8 +41,9 @@ import numpy as np
 
 from .errors import EMAError
 from .fileio import atomic_path
-from .fit import METHODS, EMAResult, fit
+from .fit import METHODS, EMAResult, fit, mode_dominance
 from .frf import FRFSet
+from .lsfd import fit_quality, modal_model
 
 if TYPE_CHECKING:  # pragma: no cover - typing only; ema.picker imports matplotlib
     from .picker import PolePicker
@@ -419,11 +420,6 @@ def _narrower(frf: FRFSet, band: tuple[float, float] | None) -> bool:
 
 def _with_picked_band(frf: FRFSet, auto: EMAResult, picked: EMAResult, band: tuple[float, float]) -> EMAResult:
     """The automatic fit's modes outside ``band`` with the picked ones inside, in one LSFD model."""
-    from dataclasses import replace
-
-    from .fit import mode_dominance
-    from .lsfd import fit_quality, modal_model
-
     f = auto.model.frequencies_hz
     parts = (auto.model.take(np.flatnonzero((f < band[0]) | (f > band[1]))), picked.model)
     poles = np.concatenate([m.poles for m in parts])
