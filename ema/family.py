@@ -359,6 +359,19 @@ def _result(win, window, f, zeta, part, pivot, n_start) -> FamilyFit:
                      frequency_std_hz=f_std[order], damping_std=z_std[order], n_start=n_start)
 
 
+def _noise_model(P: np.ndarray, M: np.ndarray, axis: int) -> tuple[np.ndarray, float]:
+    """The two-part FRF noise model from residual powers ``P`` and model powers ``M`` (same shape).
+
+    Returns the additive floor per FRF, ``median |R|² / ln 2`` along the lines' ``axis`` (kept, so it broadcasts;
+    the median of a complex Gaussian's power is ln 2 times its variance), and the share of the response,
+    ``median |R|² / |Ĥ|² / ln 2`` over the values at least :data:`STRONG` times the floor (0 if none).
+    """
+    floor = np.maximum(np.median(P, axis=axis, keepdims=True) / np.log(2), np.finfo(float).tiny)
+    strong = M >= STRONG * floor
+    share = float(np.median(P[strong] / M[strong]) / np.log(2)) if strong.any() else 0.0
+    return floor, share
+
+
 def _noise_draws(win: _Window, lam: np.ndarray, part: np.ndarray) -> np.ndarray:
     """Residuals drawn from the window's noise model, shape (N_DRAWS, rows, n_out), from a fixed seed.
 
@@ -370,9 +383,7 @@ def _noise_draws(win: _Window, lam: np.ndarray, part: np.ndarray) -> np.ndarray:
     r, fitted = res.reshape(shape), (win.Y - res).reshape(shape)
     P = r[0] ** 2 + r[1] ** 2
     M = fitted[0] ** 2 + fitted[1] ** 2
-    floor = np.maximum(np.median(P, axis=1, keepdims=True) / np.log(2), np.finfo(float).tiny)
-    strong = M >= STRONG * floor
-    share = float(np.median(P[strong] / M[strong]) / np.log(2)) if strong.any() else 0.0
+    floor, share = _noise_model(P, M, axis=1)
     sd = np.sqrt((floor + share * M) / 2)[None]                       # each of the real and imaginary parts
     rng = np.random.default_rng(0)
     return (sd * rng.standard_normal((N_DRAWS, *shape))).reshape(N_DRAWS, -1, win.n_out)
@@ -474,9 +485,7 @@ def unexplained_lines(frf: FRFSet, model: ModalModel, band: tuple[float, float]
     fitted = synthesize(model, freq, form=frf.form).H
     P = np.abs(frf.H[:, :, sel] - fitted) ** 2
     M = np.abs(fitted) ** 2
-    floor = np.maximum(np.median(P, axis=2, keepdims=True) / np.log(2), np.finfo(float).tiny)
-    strong = M >= STRONG * floor
-    share = float(np.median(P[strong] / M[strong]) / np.log(2)) if strong.any() else 0.0
+    floor, share = _noise_model(P, M, axis=2)
     z = np.max((P / (floor + share * M)).reshape(-1, freq.size), axis=0)
     threshold = float(np.log(P.shape[0] * P.shape[1] * max(freq.size, 1) / FALSE_ALARM))
     return freq, z, threshold, np.sqrt(floor[:, :, 0])

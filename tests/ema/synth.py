@@ -34,3 +34,14 @@ def synthetic_case(form="receptance", n_o=12, n_i=1, noise=0.01, seed=0):
     H = modal_frfs(freq, FN, ZETA, phi, phi[:n_i], form)
     H = H + noise * np.abs(H) * (rng.standard_normal(H.shape) + 1j * rng.standard_normal(H.shape)) / np.sqrt(2)
     return freq, H, phi
+
+
+def rig_noise(H, rng):
+    """``H`` with the virtual rig's noise: 0.5 % proportional and 0.2 % of each FRF's RMS additive, complex
+    Gaussian (as lab.rig.measure, written out here)."""
+    rms = np.sqrt(np.mean(np.abs(H) ** 2, axis=2, keepdims=True))
+
+    def noise():
+        return (rng.standard_normal(H.shape) + 1j * rng.standard_normal(H.shape)) / np.sqrt(2)
+
+    return H * (1 + 0.005 * noise()) + 0.002 * rms * noise()

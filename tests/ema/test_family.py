@@ -17,7 +17,7 @@ from ema.family import fit_family
 from ema.mac import mac, pair_by_frequency
 from ema.modal import pole_from_modal
 
-from .synth import modal_frfs
+from .synth import modal_frfs, rig_noise
 
 TOL = 5e-4  # 0.05 %
 N_OUT, N_IN = 24, 4
@@ -38,12 +38,7 @@ def _frfs(fn, zeta, phi, seed: int = 7) -> FRFSet:
     rng = np.random.default_rng(seed)
     freq = 0.5 * np.arange(760, 1281)   # 380-640 Hz
     H = modal_frfs(freq, fn, zeta, phi, phi[:N_IN], "mobility")
-    rms = np.sqrt(np.mean(np.abs(H) ** 2, axis=2, keepdims=True))
-
-    def noise():
-        return (rng.standard_normal(H.shape) + 1j * rng.standard_normal(H.shape)) / np.sqrt(2)
-
-    H = H * (1 + 0.005 * noise()) + 0.002 * rms * noise()
+    H = rig_noise(H, rng)
     outputs = [(k + 1, 3) for k in range(N_OUT)]
     return FRFSet(freq, H, outputs, outputs[:N_IN], form="mobility")
 

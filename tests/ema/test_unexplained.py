@@ -21,7 +21,7 @@ from ema.mac import mac_paired, pair_by_frequency
 from ema.modal import pole_from_modal
 from ema.uncertainty import pole_std
 
-from .synth import modal_frfs
+from .synth import modal_frfs, rig_noise
 
 N_OUT, N_IN = 24, 3
 FN = np.array([300.0, 352.0, 410.0, 455.0, 520.0])
@@ -40,12 +40,7 @@ def _case(seed: int = 5):
         phi[0, r] = 0.05
     freq = 0.25 * np.arange(1000, 2321)   # 250-580 Hz
     H = modal_frfs(freq, FN, ZETA, phi, phi[:N_IN], "mobility")
-    rms = np.sqrt(np.mean(np.abs(H) ** 2, axis=2, keepdims=True))
-
-    def noise():
-        return (rng.standard_normal(H.shape) + 1j * rng.standard_normal(H.shape)) / np.sqrt(2)
-
-    H = H * (1 + 0.005 * noise()) + 0.002 * rms * noise()
+    H = rig_noise(H, rng)
     outputs = [(k + 1, 3) for k in range(N_OUT)]
     return FRFSet(freq, H, outputs, outputs[:N_IN], form="mobility"), phi
 
