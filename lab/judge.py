@@ -16,10 +16,11 @@ from pathlib import Path
 
 import numpy as np
 
+from ema.frf import FRF_FORMS, FRFSet
 from ema.mac import mac_paired, pair_by_frequency
 from ema.modal import ModalModel
 
-__all__ = ["AssemblyTruth", "load_assembly_truth", "assembly_scores", "ONE_TO_ONE_RTOL"]
+__all__ = ["AssemblyTruth", "load_assembly_truth", "assembly_scores", "shape_mac_bound", "ONE_TO_ONE_RTOL"]
 
 #: Relative frequency window of a one-to-one pair (issue 31: 0.05 %), and of a mode "near" a true one (1 %).
 ONE_TO_ONE_RTOL, FAR_RTOL = 5e-4, 0.01
@@ -39,6 +40,8 @@ class AssemblyTruth:
     blade_energy : ndarray of float64, shape (n_visible,) or None
         The blades' share of each mode's kinetic energy (below 0.5: a disk-dominated mode).
     outputs : tuple of (node, direction)
+    damping_ratio : ndarray of float64, shape (n_visible,) or None
+        The visible modes' damping ratios.
     """
 
     frequencies_hz: np.ndarray
@@ -46,6 +49,7 @@ class AssemblyTruth:
     shapes: np.ndarray | None = None
     blade_energy: np.ndarray | None = None
     outputs: tuple[tuple[int, int], ...] = ()
+    damping_ratio: np.ndarray | None = None
 
 
 def load_assembly_truth(truth_dir: Path | None) -> AssemblyTruth | None:
@@ -58,9 +62,11 @@ def load_assembly_truth(truth_dir: Path | None) -> AssemblyTruth | None:
         return None
     f = np.asarray(visible, dtype=np.float64)
     every = np.asarray(doc.get("all_frequencies_hz", {}).get("assembly") or visible, dtype=np.float64)
+    zeta = doc.get("damping_ratios", {}).get("assembly")
+    zeta = np.asarray(zeta, dtype=np.float64) if zeta is not None and len(zeta) == f.size else None
     path = Path(truth_dir) / "assembly_modes.npz"
     if not path.is_file():
-        return AssemblyTruth(f, every)
+        return AssemblyTruth(f, every, damping_ratio=zeta)
     try:
         with np.load(path, allow_pickle=False) as z:
             shapes, energy, outputs = (np.asarray(z[k], dtype=np.float64) for k in ("shapes", "blade_energy",
@@ -70,7 +76,7 @@ def load_assembly_truth(truth_dir: Path | None) -> AssemblyTruth | None:
     if shapes.shape != (outputs.shape[0], f.size) or energy.shape != f.shape:
         raise ValueError(f"{path}: shapes {shapes.shape}, blade_energy {energy.shape} do not fit "
                          f"{f.size} visible modes and {outputs.shape[0]} outputs")
-    return AssemblyTruth(f, every, shapes, energy, tuple((int(n), int(d)) for n, d in outputs))
+    return AssemblyTruth(f, every, shapes, energy, tuple((int(n), int(d)) for n, d in outputs), zeta)
 
 
 def assembly_scores(model: ModalModel, truth: AssemblyTruth) -> dict:
@@ -108,4 +114,58 @@ def assembly_scores(model: ModalModel, truth: AssemblyTruth) -> dict:
             disk = truth.blade_energy[cols] < 0.5
             out |= {"mean_shape_mac": float(np.mean(m)), "min_shape_mac": float(np.min(m)),
                     "mean_shape_mac_disk": float(np.mean(m[disk])) if disk.any() else None}
+    return out
+
+
+def shape_mac_bound(truth: AssemblyTruth, frf: FRFSet, multiplicative: float = 0.005, additive: float = 0.002,
+                    threshold: float | None = None, n_draws: int = 200) -> np.ndarray:
+    """The shape MAC that an estimate limited only by the test's noise reaches, per visible mode.
+
+    Each output's shape entry is estimated as if everything else were known (the pole, the other modes, the
+    references' entries): the least-squares estimate over every reference and line, weighted by the rig's
+    noise, whose variance is the Cramér–Rao bound ``1 / Σ_i Σ_ω |φ_i g(ω)|² / v_oi(ω)`` with
+    ``g = (jω)^k / (ω_r² − ω² + 2 j ζ_r ω_r ω)`` and ``v_oi = (additive · RMS_oi)² + (multiplicative · |H_oi|)²``
+    (the virtual rig's model, :func:`lab.rig.measure`; ``H``: the measured FRFs). Returned is the mean MAC of
+    such estimates against the exact shape over ``n_draws`` draws (fixed seed). With ``threshold`` the entries
+    below that many standard deviations are zeroed first (an estimator that reports unmeasurable entries as 0).
+    No real estimator does better than the first figure on average: it must also find the poles and separate
+    the modes.
+
+    Parameters
+    ----------
+    truth : AssemblyTruth
+        With shapes and damping ratios.
+    frf : FRFSet
+        The full-assembly test: its references must be among the truth's outputs.
+
+    Returns
+    -------
+    ndarray of float64, shape (n_visible,)
+    """
+    if truth.shapes is None or truth.damping_ratio is None:
+        raise ValueError("shape_mac_bound: the truth has no shapes or damping ratios")
+    index = {dof: k for k, dof in enumerate(truth.outputs)}
+    missing = [d for d in (*frf.outputs, *frf.inputs) if tuple(d) not in index]
+    if missing:
+        raise ValueError(f"shape_mac_bound: DOFs {missing[:3]} of the test are not among the truth's outputs")
+    phi_o = truth.shapes[[index[tuple(d)] for d in frf.outputs]]           # (n_out, n_visible)
+    phi_i = truth.shapes[[index[tuple(d)] for d in frf.inputs]]            # (n_in, n_visible)
+    H = frf.H
+    rms = np.sqrt(np.mean(np.abs(H) ** 2, axis=2, keepdims=True))
+    v = (additive * rms) ** 2 + (multiplicative * np.abs(H)) ** 2          # (n_out, n_in, n_lines)
+    w = 2 * np.pi * frf.freq_hz
+    rng = np.random.default_rng(0)
+    out = np.empty(truth.frequencies_hz.size)
+    for c, (f, z) in enumerate(zip(truth.frequencies_hz, truth.damping_ratio, strict=True)):
+        wr = 2 * np.pi * f
+        g2 = np.abs((1j * w) ** FRF_FORMS[frf.form] / (wr**2 - w**2 + 2j * z * wr * w)) ** 2
+        info = np.einsum("i,oif->o", phi_i[:, c] ** 2, g2[None, None, :] / v)
+        sd = 1.0 / np.sqrt(info)
+        e = sd * (rng.standard_normal((n_draws, sd.size)) + 1j * rng.standard_normal((n_draws, sd.size)))
+        est = phi_o[:, c] + e / np.sqrt(2)
+        if threshold is not None:
+            est = np.where(np.abs(est) > threshold * sd, est, 0.0)
+        num = np.abs(est @ phi_o[:, c]) ** 2
+        den = np.sum(np.abs(est) ** 2, axis=1) * np.sum(phi_o[:, c] ** 2)
+        out[c] = float(np.mean(np.where(den > 0, num / np.where(den > 0, den, 1.0), 0.0)))
     return out

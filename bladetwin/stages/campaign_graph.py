@@ -154,9 +154,10 @@ def campaign_sources(campaign, bd, store, opts: RunOptions) -> dict[str, Source]
 def _ema_nodes(p: Pipeline, campaign) -> None:
     for t in campaign.tests:
         name = test_name(t)
-        # version 3 of the assembly's fit: dense families resolved (ema.fit(families=True)), missed ones filled in
+        # the assembly's fit, version 3: dense families resolved (ema.fit(families=True)), missed ones filled in;
+        # every test, +1: local shapes less the far modes where that fits better (ema.lsfd.local_residues)
         p.add(Node(f"ema/{name}", measured.fit_test, {"test": f"test/{name}"}, priority=EMA_PRIORITY.get(t.type, 50),
-                   label=f"EMA {name}", version=3 if t.type == "assembly" else 1))
+                   label=f"EMA {name}", version=4 if t.type == "assembly" else 2))
     blades = {test_name(t): f"ema/{test_name(t)}" for t in campaign.of_type("blade")}
     p.add(Node("blade_table", measured.blade_table, blades, where="parent"))
 

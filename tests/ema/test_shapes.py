@@ -17,10 +17,10 @@ from __future__ import annotations
 import numpy as np
 
 from ema import FRFSet, mac
-from ema.lsfd import modal_model
+from ema.lsfd import local_windows, lsfd, modal_model
 from ema.modal import pole_from_modal
 
-from .synth import modal_frfs
+from .synth import modal_frfs, rig_noise
 
 
 def _noisy(H: np.ndarray, rng: np.random.Generator, rel: float) -> np.ndarray:
@@ -71,3 +71,32 @@ def test_a_weak_mode_keeps_its_shape_when_a_distant_mode_was_missed():
     assert mac_local > 0.99, mac_local
     # why the local fit: the missed mode's misfit spreads over every residue of the whole-band fit
     assert mac_whole < mac_local, (mac_whole, mac_local)
+
+
+def test_a_weak_mode_beside_a_strong_family_outside_its_window():
+    # a strong family at 300-302 Hz (all found), large at the first eight points; a weak mode at 289.5 Hz,
+    # seen mainly at the last four points, whose local window ends 5 Hz short of the family (a disk mode beside
+    # a blade family, as seed 11's 1139 Hz pair beside the 1190 Hz family)
+    rng = np.random.default_rng(7)
+    fn = np.array([289.5, 300.0, 300.9, 301.7, 302.4])
+    zeta = np.array([0.001, 0.002, 0.0015, 0.002, 0.0012])
+    phi = np.zeros((12, fn.size))
+    phi[:8, 1:] = np.sign(rng.standard_normal((8, 4))) * rng.uniform(5.0, 15.0, (8, 4))
+    phi[8:, 1:] = 0.1 * rng.standard_normal((4, 4))
+    phi[8:, 0] = rng.uniform(0.5, 1.0, 4)
+    phi[:8, 0] = 0.02 * rng.standard_normal(8)
+    freq = np.arange(1, 2401) * 0.25
+    refs = [0, 1, 8]
+    H = rig_noise(modal_frfs(freq, fn, zeta, phi, phi[refs], "mobility"), rng)
+    outputs = [(k + 1, 3) for k in range(12)]
+    frf = FRFSet(freq, H, outputs, [outputs[k] for k in refs], form="mobility")
+    poles = pole_from_modal(fn, zeta)
+    model = modal_model(frf, poles, (200.0, 400.0))
+    window, near = local_windows(poles, frf, model.band_hz)[0]
+    assert list(near) == [0]  # the family is outside the weak mode's window
+    mac_model = mac(model.shapes[:, [0]], phi[:, [0]])[0, 0]
+    # the raw window alone: two residual terms for the family's tail at the strong points
+    A_raw = lsfd(frf, poles[:1], window)[0]
+    mac_raw = mac(np.linalg.svd(A_raw[0])[0][:, [0]], phi[:, [0]])[0, 0]
+    assert mac_model > 0.99, (mac_model, mac_raw)
+    assert mac_raw < mac_model, (mac_raw, mac_model)

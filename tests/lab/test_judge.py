@@ -1,0 +1,52 @@
+"""lab.judge.shape_mac_bound against a direct Monte Carlo of the estimate it describes."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ema import FRFSet
+from lab.judge import AssemblyTruth, shape_mac_bound
+from lab.rig import RigSetup
+
+
+def _mobility(freq, fn, zeta, phi_o, phi_i):
+    w, wn = 2 * np.pi * freq, 2 * np.pi * np.asarray(fn)
+    den = wn[:, None] ** 2 - w**2 + 2j * np.asarray(zeta)[:, None] * wn[:, None] * w
+    return np.einsum("or,ir,rf->oif", phi_o, phi_i, 1j * w / den)
+
+
+def test_the_bound_is_the_mean_mac_of_the_weighted_least_squares_shape():
+    # mode 0 (the one judged) is large at points 8-11 and smaller at points 0-7, where mode 1, far stronger,
+    # sets the noise (a disk mode under a blade family's noise); the references are at points 0 and 1, where
+    # mode 0 is weak (blade-tip hammers): its entries at points 0-7 are near the noise and the bound well below 1
+    rng = np.random.default_rng(11)
+    fn, zeta = np.array([300.0, 200.0]), np.array([0.002, 0.001])
+    phi = np.zeros((12, 2))
+    phi[8:, 0] = rng.uniform(0.8, 1.2, 4)
+    phi[:8, 0] = 0.3 * np.sign(rng.standard_normal(8)) * rng.uniform(0.8, 1.2, 8)
+    phi[:8, 1] = rng.uniform(30.0, 60.0, 8)
+    phi[8:, 1] = rng.uniform(0.2, 0.4, 4)
+    refs = [0, 1]
+    setup = RigSetup((100.0, 400.0), 0.25)
+    freq = setup.frequencies()
+    clean = _mobility(freq, fn, zeta, phi, phi[refs])
+    rms = np.sqrt(np.mean(np.abs(clean) ** 2, axis=2, keepdims=True))
+    v = (setup.additive_noise * rms) ** 2 + (setup.multiplicative_noise * np.abs(clean)) ** 2
+    outputs = [(k + 1, 3) for k in range(12)]
+    truth = AssemblyTruth(fn[:1], fn, phi[:, :1], np.ones(1), tuple(outputs), zeta[:1])
+    bound = shape_mac_bound(truth, FRFSet(freq, clean, outputs, [outputs[k] for k in refs], form="mobility"),
+                            setup.multiplicative_noise, setup.additive_noise, n_draws=400)[0]
+    # the estimate the bound describes, drawn directly: mode 1 known and removed, mode 0's pole and reference
+    # entries known, each output's entry by weighted least squares over references and lines
+    a = _mobility(freq, fn[:1], zeta[:1], np.ones((1, 1)), phi[refs, :1])[0]       # (n_in, n_lines)
+    macs = []
+    for _ in range(200):
+        noise = np.sqrt(v / 2) * (rng.standard_normal(clean.shape) + 1j * rng.standard_normal(clean.shape))
+        y = clean + noise - _mobility(freq, fn[1:], zeta[1:], phi[:, 1:], phi[refs, 1:])
+        est = np.einsum("if,oif->o", a.conj(), y / v) / np.einsum("if,oif->o", np.abs(a) ** 2, 1 / v)
+        macs.append(np.abs(est @ phi[:, 0]) ** 2 / (np.sum(np.abs(est) ** 2) * np.sum(phi[:, 0] ** 2)))
+    assert 0.3 < bound < 0.9, bound
+    assert abs(bound - np.mean(macs)) < 0.03, (bound, np.mean(macs))
+    # entries below 3 σ zeroed: the noise of the hidden points no longer counts
+    assert shape_mac_bound(truth, FRFSet(freq, clean, outputs, [outputs[k] for k in refs], form="mobility"),
+                           threshold=3.0)[0] > bound
