@@ -168,21 +168,21 @@ def _blank(v: float):
 
 
 def ema_modes(res: RunResult) -> dict:
-    """summary.json's ``ema``: every test's modes (Hz, damping ratio) with their standard deviations."""
-    return {name: fit.model.as_records() for name, (_, fit) in res.ema.items()}
+    """summary.json's ``ema``: per test, ``n_modes`` and its ``modes`` (Hz, damping ratio, standard deviations).
 
-
-def ema_assembly(res: RunResult) -> dict | None:
-    """summary.json's ``ema_assembly``: the full-assembly test's mode count and, for a virtual campaign, its scores
-    against the truth (:func:`lab.judge.assembly_scores`: one-to-one pairs within 0.05 %, shape MAC, …)."""
+    The full-assembly test of a virtual campaign adds its scores against the truth
+    (:func:`lab.judge.assembly_scores`: ``n_visible``, ``one_to_one_within_0p05pct``, ``mean_shape_mac``, …).
+    """
     from lab.judge import assembly_scores, load_assembly_truth
 
-    fits = [fit for t, fit in res.ema.values() if t.type == "assembly"]
-    if not fits:
-        return None
-    model = fits[0].model
-    truth = load_assembly_truth(res.campaign.truth_dir)
-    return {"n_modes": int(model.n_modes)} if truth is None else assembly_scores(model, truth)
+    out = {}
+    for name, (t, fit) in res.ema.items():
+        out[name] = {"n_modes": int(fit.model.n_modes), "modes": fit.model.as_records()}
+        if t.type == "assembly":
+            truth = load_assembly_truth(res.campaign.truth_dir)
+            if truth is not None:
+                out[name] |= assembly_scores(fit.model, truth)
+    return out
 
 
 def _ema_section(res: RunResult, out: Path, notes: list[str]) -> dict:
@@ -539,7 +539,7 @@ def write_outputs(res: RunResult, out: Path, *, command: str = "bladetwin run") 
     summary["notes"] = summary["notes"] + notes
     summary["warnings"] = unique(summary["warnings"] + texts)
     summary.update(_clean({"joints": joints, "sections": sections, "geometric": geo, "d1b": d1b_summary,
-                           "ema": ema_modes(res), "ema_assembly": ema_assembly(res), "methods": methods,
+                           "ema": ema_modes(res), "methods": methods,
                            "rom": rom}))
     summary["files"] = {"patterns": "identified_patterns.npz", "rom_modes_uff": "identified_rom_modes.uff"}
     atomic_write_text(out / "summary.json", json.dumps(summary, indent=2, allow_nan=False, default=_nan) + "\n")

@@ -56,6 +56,11 @@ def _edit_manifest(folder, edit) -> None:
     path.write_text(tomli_w.dumps(doc))
 
 
+def _truth_frequencies(camp) -> list:
+    """The full assembly's visible modes (Hz) in the campaign's truth."""
+    return json.loads((camp / "truth" / "truth.json").read_text())["frequencies_hz"]["assembly"]
+
+
 def test_summary_has_every_field_and_the_truth_confirms_the_identification(campaign, cold):
     _, camp = campaign
     out, s = cold
@@ -100,6 +105,11 @@ def test_summary_has_every_field_and_the_truth_confirms_the_identification(campa
     assert cases["B"]["mean_abs_df_pct"] - cases["C"]["mean_abs_df_pct"] <= 0.2
     # the identified ROM's disk–one-blade feature frequencies follow the measured ones within 1 %
     assert s["d1b"]["experimental_mean_abs_df_pct"] < 1.0
+    # every test's modes, and the full assembly's scores against the truth (lab.judge, recomputed here)
+    asm = s["ema"]["assembly"]
+    assert asm["n_modes"] == len(asm["modes"]) and asm["n_visible"] == len(_truth_frequencies(camp))
+    assert asm["one_to_one_within_0p05pct"] >= 0.9 and asm["mean_shape_mac"] > 0.5
+    assert all(s["ema"][name]["n_modes"] == len(s["ema"][name]["modes"]) for name in s["ema"])
 
 
 def test_outputs_report_and_uff55_are_complete(cold):
@@ -210,6 +220,7 @@ def test_campaign_without_truth_reports_cases_a_and_c_unavailable(campaign, cold
     assert main(["run", str(lab), *KNN_ONLY, "--out", str(out), "--cache-dir", str(root / "cache"), "--quiet"]) == 0
     s = json.loads((out / "summary.json").read_text())
     assert s["cases"]["A"] is None and s["cases"]["C"] is None and s["cases"]["baseline"]["A"] is None
+    assert set(s["ema"]["assembly"]) == {"n_modes", "modes"}  # no truth, no scores
     assert s["cases"]["B"]["n_modes"] > 0
     assert any("unavailable" in n for n in s["notes"])
     assert all(j["reference_area_L_pct"] is None for j in s["joints"])
