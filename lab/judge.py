@@ -88,7 +88,8 @@ def assembly_scores(model: ModalModel, truth: AssemblyTruth) -> dict:
         ``n_modes``, ``n_visible``, ``n_within_0p05pct`` and ``one_to_one_within_0p05pct`` (a fraction of the
         visible modes), ``n_more_than_1pct_off`` (EMA modes more than 1 % from every true mode in the band, the
         invisible ones included: a weak true mode found is no error),
-        ``within_2sd`` (share of the modes paired within 1 % whose truth lies within ± 2 standard deviations),
+        ``within_2sd`` (share of the EMA modes within 1 % of a true mode whose nearest true mode lies within
+        ± 2 standard deviations),
         and where the truth has shapes ``mean_shape_mac``, ``min_shape_mac`` and ``mean_shape_mac_disk``
         (the pairs within 0.05 %; the last over the disk-dominated ones, None if there are none).
     """
@@ -96,12 +97,21 @@ def assembly_scores(model: ModalModel, truth: AssemblyTruth) -> dict:
     rows, cols = pair_by_frequency(f, ft, ONE_TO_ONE_RTOL)
     fa = truth.all_frequencies_hz
     far = int(sum(np.min(np.abs(x - fa) / fa) > FAR_RTOL for x in f)) if fa.size else int(f.size)
-    a, b = pair_by_frequency(f, ft, FAR_RTOL)
+    # Each found mode against the true mode it estimates: the nearest one (the invisible ones included), if
+    # within 1 %. Not a one-to-one pairing: with one duplicate and one missed mode in a family, a maximum
+    # one-to-one pairing shifts a chain of neighbours onto the wrong truths (seed 11: z of 23 and 25 for
+    # modes 0.004 and 0.044 Hz from their own true mode).
+    every = fa if fa.size else ft
+    if f.size and every.size:
+        nearest = every[np.argmin(np.abs(f[:, None] - every[None, :]), axis=1)]
+        a = np.flatnonzero(np.abs(f - nearest) <= FAR_RTOL * nearest)
+    else:
+        nearest, a = np.zeros(f.size), np.zeros(0, int)
     sd = model.frequency_std_hz[a] if model.frequency_std_hz is not None else np.full(a.size, np.nan)
     # a zero or missing standard deviation covers no error: such a mode counts as outside ± 2 σ
     ok = np.isfinite(sd) & (sd > 0)
     z = np.full(a.size, np.inf)
-    z[ok] = np.abs(f[a] - ft[b])[ok] / sd[ok]
+    z[ok] = np.abs(f[a] - nearest[a])[ok] / sd[ok]
     out = {"n_modes": int(model.n_modes), "n_visible": int(ft.size), "n_within_0p05pct": int(rows.size),
            "one_to_one_within_0p05pct": rows.size / ft.size if ft.size else None,
            "n_more_than_1pct_off": far, "within_2sd": float(np.mean(z <= 2)) if z.size else None}

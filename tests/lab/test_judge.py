@@ -1,11 +1,15 @@
-"""lab.judge.shape_mac_bound against a direct Monte Carlo of the estimate it describes."""
+"""lab.judge: the shape bound against a direct Monte Carlo of the estimate it describes, and the calibration score."""
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
+import pytest
 
 from ema import FRFSet
-from lab.judge import AssemblyTruth, shape_mac_bound
+from ema.modal import ModalModel
+from lab.judge import AssemblyTruth, assembly_scores, shape_mac_bound
 from lab.rig import RigSetup
 
 
@@ -50,3 +54,19 @@ def test_the_bound_is_the_mean_mac_of_the_weighted_least_squares_shape():
     # entries below 3 σ zeroed: the noise of the hidden points no longer counts
     assert shape_mac_bound(truth, FRFSet(freq, clean, outputs, [outputs[k] for k in refs], form="mobility"),
                            threshold=3.0)[0] > bound
+
+
+def test_each_found_mode_is_judged_against_its_nearest_true_mode():
+    # a family of four true modes 0.5 Hz (0.1 %) apart, the last invisible; the EMA found the first twice, missed
+    # the next two and found the last: a maximum one-to-one pairing within 1 % would put the duplicate on 500.5 Hz
+    true = np.array([500.0, 500.5, 501.0, 501.5])
+    truth = AssemblyTruth(true[:3], true)                       # 501.5 Hz is invisible
+    found = np.array([500.001, 500.003, 501.492])
+    std = np.array([0.002, 0.002, 0.01])
+    model = ModalModel(found, np.full(3, 0.001), np.eye(2, 3, dtype=complex), ((1, 3), (2, 3)),
+                       frequency_std_hz=std, damping_std=np.full(3, 1e-5))
+    scores = assembly_scores(model, truth)
+    # 0.5, 1.5 and 0.8 σ from their nearest truths (500.0, 500.0, 501.5): all within ± 2 σ; halved σ: 1, 3, 1.6
+    assert scores["within_2sd"] == 1.0
+    assert assembly_scores(replace(model, frequency_std_hz=std / 2), truth)["within_2sd"] == pytest.approx(2 / 3)
+    assert scores["n_within_0p05pct"] == 1 and scores["n_more_than_1pct_off"] == 0
