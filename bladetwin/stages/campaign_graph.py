@@ -155,9 +155,10 @@ def _ema_nodes(p: Pipeline, campaign) -> None:
     for t in campaign.tests:
         name = test_name(t)
         # the assembly's fit, version 3: dense families resolved (ema.fit(families=True)), missed ones filled in;
-        # every test, +1: local shapes less the far modes where that fits better (ema.lsfd.local_residues)
+        # every test, +1: local shapes less the far modes where that fits better (ema.lsfd.local_residues);
+        # the assembly, 5: moved starting modes and off-line scan modes refused
         p.add(Node(f"ema/{name}", measured.fit_test, {"test": f"test/{name}"}, priority=EMA_PRIORITY.get(t.type, 50),
-                   label=f"EMA {name}", version=4 if t.type == "assembly" else 2))
+                   label=f"EMA {name}", version=5 if t.type == "assembly" else 2))
     blades = {test_name(t): f"ema/{test_name(t)}" for t in campaign.of_type("blade")}
     p.add(Node("blade_table", measured.blade_table, blades, where="parent"))
 

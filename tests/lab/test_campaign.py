@@ -175,14 +175,15 @@ def test_the_assembly_truth_shapes_judge_the_ema(campaign):
 
 
 def test_the_families_fit_keeps_no_pole_at_the_damping_bound(campaign):
-    """On this 6-blade campaign the families fit once kept modes whose damping refinement drove to the upper bound
-    (5 %), 1.2 % and 2.8 % from every true mode; they are dropped, and the fit still pairs 19 of the 20 visible
+    """On this 6-blade campaign the families fit once kept modes whose damping refinement drove to a bound (5 %,
+    1.2 % and 2.8 % from every true mode; 0.001 %, 3.8 % off) and a scan-grown mode 1.35 Hz beside the line that
+    opened its window (2.8 % off); they are dropped or refused, and the fit still pairs 19 of the 20 visible
     modes within 0.05 % (the ordinary fit: 20; docs/ema.md, limits)."""
     from ema.family import ZETA_BOUNDS
     from lab.judge import assembly_scores, load_assembly_truth
 
     out, _ = campaign
     model = ema.fit(ema.read_uff(out / "assembly" / "assembly.uff"), families=True).model
-    assert np.all(model.damping_ratio < ZETA_BOUNDS[1] / 1.5), model.damping_ratio
+    assert np.all((model.damping_ratio < ZETA_BOUNDS[1] / 1.5) & (model.damping_ratio > 1.5 * ZETA_BOUNDS[0]))
     scores = assembly_scores(model, load_assembly_truth(out / "truth"))
-    assert scores["n_within_0p05pct"] >= scores["n_visible"] - 1 and scores["n_more_than_1pct_off"] <= 1, scores
+    assert scores["n_within_0p05pct"] >= scores["n_visible"] - 1 and scores["n_more_than_1pct_off"] == 0, scores
