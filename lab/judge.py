@@ -19,6 +19,7 @@ import numpy as np
 from ema.frf import FRF_FORMS, FRFSet
 from ema.mac import mac_paired, pair_by_frequency
 from ema.modal import ModalModel
+from lab.rig import RigSetup
 
 __all__ = ["AssemblyTruth", "load_assembly_truth", "assembly_scores", "shape_mac_bound", "ONE_TO_ONE_RTOL"]
 
@@ -127,8 +128,9 @@ def assembly_scores(model: ModalModel, truth: AssemblyTruth) -> dict:
     return out
 
 
-def shape_mac_bound(truth: AssemblyTruth, frf: FRFSet, multiplicative: float = 0.005, additive: float = 0.002,
-                    threshold: float | None = None, n_draws: int = 200) -> np.ndarray:
+def shape_mac_bound(truth: AssemblyTruth, frf: FRFSet, multiplicative: float = RigSetup.multiplicative_noise,
+                    additive: float = RigSetup.additive_noise, threshold: float | None = None,
+                    n_draws: int = 200) -> np.ndarray:
     """The shape MAC that an estimate limited only by the test's noise reaches, per visible mode.
 
     Each output's shape entry is estimated as if everything else were known (the pole, the other modes, the
@@ -138,8 +140,8 @@ def shape_mac_bound(truth: AssemblyTruth, frf: FRFSet, multiplicative: float = 0
     (the virtual rig's model, :func:`lab.rig.measure`; ``H``: the measured FRFs). Returned is the mean MAC of
     such estimates against the exact shape over ``n_draws`` draws (fixed seed). With ``threshold`` the entries
     below that many standard deviations are zeroed first (an estimator that reports unmeasurable entries as 0).
-    No real estimator does better than the first figure on average: it must also find the poles and separate
-    the modes.
+    No unbiased estimator does better than the first figure on average: a real one must also find the poles
+    and separate the modes. A mode no reference excites scores 0.
 
     Parameters
     ----------
@@ -160,16 +162,19 @@ def shape_mac_bound(truth: AssemblyTruth, frf: FRFSet, multiplicative: float = 0
         raise ValueError(f"shape_mac_bound: DOFs {missing[:3]} of the test are not among the truth's outputs")
     phi_o = truth.shapes[[index[tuple(d)] for d in frf.outputs]]           # (n_out, n_visible)
     phi_i = truth.shapes[[index[tuple(d)] for d in frf.inputs]]            # (n_in, n_visible)
-    H = frf.H
+    lines = frf.valid_lines() & (frf.freq_hz > 0)
+    H = frf.H[:, :, lines]
     rms = np.sqrt(np.mean(np.abs(H) ** 2, axis=2, keepdims=True))
-    v = (additive * rms) ** 2 + (multiplicative * np.abs(H)) ** 2          # (n_out, n_in, n_lines)
-    w = 2 * np.pi * frf.freq_hz
+    v = np.maximum((additive * rms) ** 2 + (multiplicative * np.abs(H)) ** 2, np.finfo(float).tiny)
+    w = 2 * np.pi * frf.freq_hz[lines]
     rng = np.random.default_rng(0)
-    out = np.empty(truth.frequencies_hz.size)
+    out = np.zeros(truth.frequencies_hz.size)
     for c, (f, z) in enumerate(zip(truth.frequencies_hz, truth.damping_ratio, strict=True)):
         wr = 2 * np.pi * f
         g2 = np.abs((1j * w) ** FRF_FORMS[frf.form] / (wr**2 - w**2 + 2j * z * wr * w)) ** 2
         info = np.einsum("i,oif->o", phi_i[:, c] ** 2, g2[None, None, :] / v)
+        if not np.all(info > 0):
+            continue                      # no reference excites the mode: no estimate, MAC 0
         sd = 1.0 / np.sqrt(info)
         e = sd * (rng.standard_normal((n_draws, sd.size)) + 1j * rng.standard_normal((n_draws, sd.size)))
         est = phi_o[:, c] + e / np.sqrt(2)
