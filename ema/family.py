@@ -142,8 +142,8 @@ class _Window:
 
         With ``scores`` the third item is instead each spectral line's share of the gradient, shape
         (n_lines, n_parameters), for the sandwich covariance of :func:`_result`; with ``draws`` (residuals drawn
-        from a noise model, shape (n_draws, rows, n_out)) the same for each draw, shape (n_draws, n_lines,
-        n_parameters).
+        from a noise model, shape (n_draws, rows, n_out)) the same for the fit's residual and then each draw,
+        shape (1 + n_draws, n_lines, n_parameters).
 
         Kaufman's variable-projection Jacobian of parameter k of mode r is ``−P⊥ (d1_k x_rᵀ + d2_k y_rᵀ)``
         (d1, d2: the derivatives of mode r's two design columns; x_r, y_r: its rows Re ψ_r, Im ψ_r of the
@@ -190,7 +190,7 @@ class _Window:
                 per_row = -np.einsum("xka,xka->xk", Er, RM[:, owner_, :])
                 return per_row.reshape(2, self.n_in, self.n_lines, m).sum(axis=(0, 1))
 
-            return cost, JJ, per_line(res) if draws is None else np.stack([per_line(r) for r in draws])
+            return cost, JJ, per_line(res) if draws is None else np.stack([per_line(r) for r in (res, *draws)])
         grad = -np.einsum("kao,kao->k", (E.T @ res).reshape(m, 2, -1), M[owner_])
         return cost, JJ, grad
 
@@ -269,8 +269,13 @@ def _explains(win: _Window, f, zeta, part, r: int) -> bool:
     left = _band_energy(win, res, f[r], zeta[r])
     keep = np.arange(f.size) != r
     without = win.solve(lam[keep], part[:, keep])[0] if keep.any() else 0.5 * float(np.sum(win.Y**2))
-    # cost is ½‖r‖²; a damping at either bound is a pole fitting a noise spike (lower) or a broad trend (upper)
-    return without - cost >= 0.5 * left and 1.5 * ZETA_BOUNDS[0] < zeta[r] < ZETA_BOUNDS[1] / 1.5
+    return without - cost >= 0.5 * left and not _at_bound(zeta[r])       # cost is ½‖r‖²
+
+
+def _at_bound(zeta):
+    """Is a damping ratio (or each of an array) at a bound of :data:`ZETA_BOUNDS`: a pole fitting a noise spike
+    (lower) or the window's background (upper)?"""
+    return (zeta <= 1.5 * ZETA_BOUNDS[0]) | (zeta >= ZETA_BOUNDS[1] / 1.5)
 
 
 def fit_family(frf: FRFSet, poles: np.ndarray, window: tuple[float, float], core: tuple[float, float],
@@ -322,7 +327,7 @@ def fit_family(frf: FRFSet, poles: np.ndarray, window: tuple[float, float], core
     # a mode the later refinements drove to a damping bound fits the window's background (upper; a 6-blade
     # campaign kept one at 1116.5 Hz, 1 % from every true mode) or a noise spike (lower; the same campaign,
     # 647.1 Hz, 3.8 % off): dropped, the rest refined once more (as _explains refuses them when grown)
-    while f.size and np.any(bad := (zeta >= ZETA_BOUNDS[1] / 1.5) | (zeta <= 1.5 * ZETA_BOUNDS[0])):
+    while f.size and np.any(bad := _at_bound(zeta)):
         n_start -= int(np.count_nonzero(bad[:n_start]))
         f, zeta, part, pivot = f[~bad], zeta[~bad], part[:, ~bad], pivot[~bad]
         if f.size:
@@ -330,7 +335,9 @@ def fit_family(frf: FRFSet, poles: np.ndarray, window: tuple[float, float], core
     return _result(win, window, f, zeta, part, pivot, n_start)
 
 
-def _restart_participations(frf, win, window, f, zeta, part, pivot):
+def _restart_participations(frf: FRFSet, win: _Window, window: tuple[float, float], f: np.ndarray,
+                            zeta: np.ndarray, part: np.ndarray, pivot: np.ndarray
+                            ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Each mode's participation replaced by the free residues' rank-one part where that lowers the cost,
     then refined once more.
 
@@ -358,7 +365,7 @@ def _restart_participations(frf, win, window, f, zeta, part, pivot):
 def _result(win, window, f, zeta, part, pivot, n_start) -> FamilyFit:
     lam = pole_from_modal(f, zeta)
     n = f.size
-    _, _, coef, _ = win.solve(lam, part) if n else (0, 0, np.zeros((0, win.n_out)), 0)
+    _, res, coef, _ = win.solve(lam, part) if n else (0, None, np.zeros((0, win.n_out)), 0)
     psi = coef[:n] + 1j * coef[n:2 * n]                   # (n, n_out)
     residues = psi[:, :, None] * part.T[:, None, :]
     n_par = n * (2 * win.n_in + 2 * win.n_out) + 2 * win.n_in * win.n_out   # nonlinear, shapes, residual terms
@@ -371,10 +378,10 @@ def _result(win, window, f, zeta, part, pivot, n_start) -> FamilyFit:
             # or two peak lines, too few clusters for their residuals to measure the noise (seed 11: truths at
             # 2-4 σ). The second takes the meat from residuals drawn from a noise model fitted to the window.
             # Plain Gauss-Newton, one variance for all lines, held only 39-60 % of the truths within ± 2 σ.
-            _, JJ, per_line = win.normal_equations(lam, part, pivot, scores=True)
+            _, JJ, per = win.normal_equations(lam, part, pivot, scores=True, draws=_noise_draws(win, res))
+            per_line, drawn = per[0], per[1:]
             bread = np.linalg.inv(JJ)
             meat = per_line.T @ per_line * win.Y.size / max(win.Y.size - n_par, 1)
-            drawn = win.normal_equations(lam, part, pivot, scores=True, draws=_noise_draws(win, lam, part))[2]
             meat_model = np.einsum("dlk,dlj->kj", drawn, drawn) / len(drawn)
             var = np.maximum(np.diag(bread @ meat @ bread), np.diag(bread @ meat_model @ bread))
             idx = np.cumsum([0] + [2 + 2 * (win.n_in - 1)] * (n - 1))
@@ -400,13 +407,13 @@ def _noise_model(P: np.ndarray, M: np.ndarray, axis: int) -> tuple[np.ndarray, f
     return floor, share
 
 
-def _noise_draws(win: _Window, lam: np.ndarray, part: np.ndarray) -> np.ndarray:
+def _noise_draws(win: _Window, res: np.ndarray) -> np.ndarray:
     """Residuals drawn from the window's noise model, shape (N_DRAWS, rows, n_out), from a fixed seed.
 
-    The model of :func:`unexplained_lines`, fitted to the window's own residual: an additive floor per FRF (the
-    median residual power) and a share of the fitted response (from the strong values).
+    The model of :func:`unexplained_lines`, fitted to the window's own residual ``res`` (rows, n_out; from
+    :meth:`_Window.solve`): an additive floor per FRF (the median residual power) and a share of the fitted
+    response (from the strong values).
     """
-    _, res, _, _ = win.solve(lam, part)
     shape = (2, win.n_in, win.n_lines, win.n_out)
     r, fitted = res.reshape(shape), (win.Y - res).reshape(shape)
     P = r[0] ** 2 + r[1] ** 2

@@ -99,7 +99,7 @@ def lsfd(
         Residual terms (zeros when not fitted).
     """
     poles = np.asarray(poles, dtype=np.complex128).reshape(-1)
-    c, _ = _lsfd_columns(frf, poles, band, residuals)
+    c, _ = _lsfd_columns([frf], poles, band, residuals)[0]
     n = poles.size
     A = (c[:n] + 1j * c[n : 2 * n]).reshape(n, frf.n_outputs, frf.n_inputs)
     shape = (frf.n_outputs, frf.n_inputs)
@@ -112,16 +112,23 @@ def lsfd(
     return A, lower, upper
 
 
-def _lsfd_columns(frf: FRFSet, poles: np.ndarray, band: tuple[float, float] | None, residuals: bool
-                  ) -> tuple[np.ndarray, np.ndarray]:
-    """The LSFD's real coefficients, shape (2 n_modes [+ 2], n_outputs·n_inputs), and each FRF's residual
-    norm (Σ|H − Ĥ|²)^½ over the lines, shape (n_outputs·n_inputs,). Each FRF is its own least-squares problem."""
+def _lsfd_columns(frfs: list[FRFSet], poles: np.ndarray, band: tuple[float, float] | None, residuals: bool
+                  ) -> list[tuple[np.ndarray, np.ndarray]]:
+    """For each FRF set (the same lines and form), the LSFD's real coefficients, shape (2 n_modes [+ 2],
+    n_outputs·n_inputs), and each FRF's residual norm (Σ|H − Ĥ|²)^½ over the lines, shape
+    (n_outputs·n_inputs,). Each FRF is its own least-squares problem; all share one basis and one solve."""
     # solved on data brought to unit size by one power of two (exact), then scaled back: residues of
     # FRFs of 1e-156 or 1e+144 would otherwise under- or overflow in the least-squares solve
-    f, Y, scale = _band_lines(frf, band, "scalar", residuals)
-    B = _basis(poles, f, frf.form, residuals)
+    lines = [_band_lines(frf, band, "scalar", residuals) for frf in frfs]
+    f = lines[0][0]
+    if any(not np.array_equal(x[0], f) for x in lines[1:]):
+        raise ValueError("_lsfd_columns: the FRF sets do not share their lines")
+    B = _basis(poles, f, frfs[0].form, residuals)
+    Y, scale = np.hstack([x[1] for x in lines]), np.concatenate([x[2] for x in lines])
     c, fit = _solve(B, Y)
-    return c / scale[None, :], np.linalg.norm(Y - fit, axis=0) / scale
+    c, norm = c / scale[None, :], np.linalg.norm(Y - fit, axis=0) / scale
+    cuts = np.cumsum([x[1].shape[1] for x in lines])[:-1]
+    return list(zip(np.split(c, cuts, axis=1), np.split(norm, cuts), strict=True))
 
 
 def _basis_derivatives(poles: np.ndarray, freq_hz: np.ndarray, form: str) -> tuple[np.ndarray, np.ndarray]:
@@ -347,9 +354,8 @@ def local_residues(frf: FRFSet, poles: np.ndarray, band: tuple[float, float], re
             continue
         window, near = item
         try:
-            raw, cost_raw = _lsfd_columns(frf, poles[near], window, True)
-            less, cost_less = _lsfd_columns(_less_far_modes(frf, poles, residues, near, window), poles[near],
-                                            window, True)
+            (raw, cost_raw), (less, cost_less) = _lsfd_columns(
+                [frf, _less_far_modes(frf, poles, residues, near, window)], poles[near], window, True)
         except ValueError:  # a window the LSFD refuses: keep the whole-band residues
             continue
         # per FRF, the fit that explains the window better (the same unknowns either way): the far modes'

@@ -96,18 +96,17 @@ def assembly_scores(model: ModalModel, truth: AssemblyTruth) -> dict:
     """
     f, ft = model.frequencies_hz, truth.frequencies_hz
     rows, cols = pair_by_frequency(f, ft, ONE_TO_ONE_RTOL)
-    fa = truth.all_frequencies_hz
-    far = int(sum(np.min(np.abs(x - fa) / fa) > FAR_RTOL for x in f)) if fa.size else int(f.size)
-    # Each found mode against the true mode it estimates: the nearest one (the invisible ones included), if
-    # within 1 %. Not a one-to-one pairing: with one duplicate and one missed mode in a family, a maximum
-    # one-to-one pairing shifts a chain of neighbours onto the wrong truths (seed 11: z of 23 and 25 for
-    # modes 0.004 and 0.044 Hz from their own true mode).
-    every = fa if fa.size else ft
+    # Each found mode against the true mode it estimates: the nearest one (the invisible ones included); more
+    # than 1 % from it, the mode is far. Not a one-to-one pairing: with one duplicate and one missed mode in a
+    # family, a maximum one-to-one pairing shifts a chain of neighbours onto the wrong truths (seed 11: z of 23
+    # and 25 for modes 0.004 and 0.044 Hz from their own true mode).
+    every = truth.all_frequencies_hz if truth.all_frequencies_hz.size else ft
     if f.size and every.size:
         nearest = every[np.argmin(np.abs(f[:, None] - every[None, :]), axis=1)]
-        a = np.flatnonzero(np.abs(f - nearest) <= FAR_RTOL * nearest)
+        near = np.abs(f - nearest) <= FAR_RTOL * nearest
     else:
-        nearest, a = np.zeros(f.size), np.zeros(0, int)
+        nearest, near = np.zeros(f.size), np.zeros(f.size, bool)
+    far, a = int(np.count_nonzero(~near)), np.flatnonzero(near)
     sd = model.frequency_std_hz[a] if model.frequency_std_hz is not None else np.full(a.size, np.nan)
     # a zero or missing standard deviation covers no error: such a mode counts as outside ± 2 σ
     ok = np.isfinite(sd) & (sd > 0)
