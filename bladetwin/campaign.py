@@ -11,7 +11,16 @@ import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from .manifest_keys import CAMPAIGN_KEYS, FILM_KEYS, TEST_KEYS, TOP_KEYS, film_meta_message, unknown_key_message
+from .manifest_keys import (
+    CAMPAIGN_KEYS,
+    FILM_KEYS,
+    MASS_KEYS,
+    TEST_KEYS,
+    TOP_KEYS,
+    film_meta_message,
+    mass_message,
+    unknown_key_message,
+)
 
 __all__ = ["Campaign", "CampaignError", "FilmEntry", "TestEntry", "read_campaign", "model_family",
            "imported_model_table", "ACADEMIC_MODEL_KEYS", "IMPORTED_MODEL_KEYS"]
@@ -99,6 +108,9 @@ class Campaign:
         (:func:`imported_model_table`; docs/campaign.md).
     tests : tuple of TestEntry
     films : tuple of FilmEntry
+    masses : dict
+        The optional ``[masses]`` table (kg): ``disk_kg`` (float) and ``blade_kg`` (one float for the mean
+        blade, or one per blade), the components weighed for the calibration of ρ (paper §5).
     """
 
     root: Path
@@ -110,6 +122,7 @@ class Campaign:
     model: dict
     tests: tuple[TestEntry, ...]
     films: tuple[FilmEntry, ...]
+    masses: dict = field(default_factory=dict)
 
     def of_type(self, kind: str) -> list[TestEntry]:
         """The tests of one type, in blade/joint order."""
@@ -347,7 +360,20 @@ def _read_campaign(root: Path) -> Campaign:
         raise CampaignError(f"{path} films[{unknown[0]}]: joint {j} is not in known_joints {known}: add it there to "
                             "use its film, or remove the film")
     return Campaign(root.resolve(), str(head.get("name", root.name)), str(head.get("kind", "lab")), n_blades, grid,
-                    tuple(int(k) for k in known), dict(model), tuple(tests), tuple(films.values()))
+                    tuple(int(k) for k in known), dict(model), tuple(tests), tuple(films.values()),
+                    _read_masses(doc, path, n_blades))
+
+
+def _read_masses(doc: dict, path: Path, n_blades: int) -> dict:
+    """The checked ``[masses]`` table (kg), or ``{}``."""
+    masses = doc.get("masses", {})
+    where = f"{path} [masses]"
+    if not isinstance(masses, dict):
+        raise CampaignError(f"{where}: expected a table with disk_kg and/or blade_kg")
+    _known(masses, MASS_KEYS, where)
+    if (msg := mass_message(masses, where, n_blades)) is not None:
+        raise CampaignError(msg)
+    return dict(masses)
 
 
 def _read_tests(doc: dict, path: Path, root: Path, n_blades: int, default_units: str | None) -> list[TestEntry]:

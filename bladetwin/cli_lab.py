@@ -26,6 +26,9 @@ def register(sub) -> None:
                    help="mesh level of the twin (default: %(default)s; coarse is for tests)")
     p.add_argument("--known", default=None, metavar="J,J,...",
                    help="filmed (known) joints, 1-based, e.g. 3,7,10,14,17 (default: up to 5 spread evenly)")
+    p.add_argument("--realism", default="realistic", choices=["realistic", "ideal"],
+                   help="the truth twin: a specimen and test that differ from the model as real ones do "
+                        "(default), or the model's own parts, for tests that isolate one stage (docs/twin.md)")
     p.add_argument("--name", default=None, help="campaign name in the manifest (default: the folder name)")
     p.add_argument("--json", action="store_true", help="print {campaign, n_files, truth} as JSON")
     p.set_defaults(func=_cmd_simulate)
@@ -58,7 +61,7 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     if grid is not None:
         kw["grid"] = grid
     spec = CampaignSpec(seed=args.seed, level=args.level, known_joints=parse_known(args.known),
-                        name=args.name or out.name, **kw)
+                        name=args.name or out.name, realism=args.realism, **kw)
     # Every argument is checked before minutes of simulation (blade count, grid, level, known joints).
     spec.model_params()
     spec.known()

@@ -7,14 +7,18 @@ so every table of ``campaign.toml`` is checked against its list here (docs/campa
 from __future__ import annotations
 
 import difflib
+import math
 
-__all__ = ["TOP_KEYS", "CAMPAIGN_KEYS", "TEST_KEYS", "FILM_KEYS", "unknown_key_message", "film_meta_message"]
+__all__ = ["TOP_KEYS", "CAMPAIGN_KEYS", "MASS_KEYS", "TEST_KEYS", "FILM_KEYS", "unknown_key_message",
+           "film_meta_message", "mass_message"]
 
 #: The manifest's top-level tables.
-TOP_KEYS = ("campaign", "model", "tests", "films")
+TOP_KEYS = ("campaign", "model", "tests", "films", "masses")
 #: ``[campaign]``: identity, layout, the filmed joints, the FRF unit label; what wrote it and how films map.
 CAMPAIGN_KEYS = ("name", "kind", "n_blades", "grid", "known_joints", "frf_units", "generated_by", "orientation",
                  "description")
+#: ``[masses]``: the weighed components (kg), for the calibration of ρ.
+MASS_KEYS = ("disk_kg", "blade_kg")
 #: ``[[tests]]``: one UFF file each.
 TEST_KEYS = ("type", "file", "blade", "joint", "max_order", "picks", "units", "check_numbering")
 #: ``[[films]]``: one scan each, with its film metadata (``identify.film.FilmGeometry``, ``lab.films.FilmMeta``
@@ -59,4 +63,21 @@ def film_meta_message(meta: dict, where: str) -> str | None:
     if _number(meta.get("contact_level")) and _number(meta.get("white")) and meta["contact_level"] >= meta["white"]:
         return (f"{where}: contact_level = {meta['contact_level']} is not below white = {meta['white']}: every pixel "
                 "would read as contact")
+    return None
+
+
+def _positive(v) -> bool:
+    return _number(v) and math.isfinite(v) and v > 0
+
+
+def mass_message(masses: dict, where: str, n_blades: int) -> str | None:
+    """One line naming an unusable ``[masses]`` field, or None: ``disk_kg`` a positive number, ``blade_kg`` one
+    positive number (the mean blade) or one per blade."""
+    if "disk_kg" in masses and not _positive(masses["disk_kg"]):
+        return f"{where}: disk_kg = {masses['disk_kg']!r}, expected the disk's mass in kg (> 0)"
+    blade = masses.get("blade_kg")
+    if blade is not None and not (_positive(blade) or (isinstance(blade, list) and len(blade) == n_blades
+                                                      and all(map(_positive, blade)))):
+        return (f"{where}: blade_kg = {blade!r}, expected the mean blade mass in kg (> 0) or one mass per blade "
+                f"({n_blades})")
     return None

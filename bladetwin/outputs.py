@@ -31,6 +31,7 @@ from identify.validation import contact_area_fraction, geometric_validation
 from rom.pattern_io import save_patterns
 
 from .methods import FREQUENCY_HEADER, POSTERIOR_HEADER, methods_summary, posterior_frequency_rows, posterior_rows
+from .outputs_calibration import calibration_section, calibration_summary
 from .rom_summary import (
     CASE_HEADER,
     CORRECTION_HEADER,
@@ -526,7 +527,8 @@ def write_outputs(res: RunResult, out: Path, *, command: str = "bladetwin run") 
     out.mkdir(parents=True, exist_ok=True)
     notes: list[str] = []
     with recording() as texts:  # e.g. a figure's or a table's warning: to summary.json, not only stderr
-        sections = [_ema_section(res, out, notes), _patterns_section(res, out)]
+        sections = [_ema_section(res, out, notes), calibration_section(res, out, _csv), _patterns_section(res, out)]
+        sections = [x for x in sections if x is not None]
         ident, joints, geo = _identification_section(res, out)
         d1b, d1b_summary = _d1b_section(res, out)
         methods = methods_summary(res)
@@ -580,7 +582,9 @@ def summary_of(res: RunResult, command: str) -> dict:
         "settings": {"n_patterns": res.options.n_patterns, "scale": res.options.scale, "seed": res.options.seed,
                      "step_pct": res.options.step_pct, "n_features": res.options.n_features,
                      "refine_max_solves": res.options.refine, "method": res.options.method,
-                     "n_components": res.options.n_components, "rom": res.options.rom},
+                     "n_components": res.options.n_components, "rom": res.options.rom,
+                     "calibrate": res.options.calibrate},
+        "calibration": calibration_summary(res),
         "timings_s": {k: round(v, 2) for k, v in res.timings_s.items()},
         "stages": dict(res.stage_counts),
     })

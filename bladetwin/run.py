@@ -21,6 +21,7 @@ from .stages import (
     Runner,
     RunOptions,
     RunResult,
+    Source,
     Store,
     campaign_pipeline,
     campaign_sources,
@@ -32,7 +33,8 @@ from .user_warnings import recording, unique
 __all__ = ["STAGE_GROUPS", "check_campaign", "run_campaigns", "run_nodes"]
 
 #: Which nodes each figure of ``timings_s`` adds up (compute seconds; the stages overlap on the workers).
-STAGE_GROUPS = {"ema": ("ema/", "blade_table"), "rom": ("disk_cb", "blade_rubin", "disk_cyclic", "delta_all"),
+STAGE_GROUPS = {"ema": ("ema/", "blade_table", "calibration"),
+                "rom": ("disk_cb", "blade_rubin", "disk_cyclic", "delta_all"),
                 "dataset": ("synthetic", "sensitivity", "dataset"),
                 "identify": ("features", "predictions", "refine/", "patterns/", "posterior/"),
                 "rom_update": ("rom_update/",),
@@ -82,19 +84,49 @@ def _timings(seconds: dict[str, float], prefix: str) -> dict[str, float]:
     return out
 
 
+def _calibrated(c: Campaign, p: Pipeline, nominal: Source, store: Store, opts: RunOptions, say,
+                calibrated: dict) -> Source:
+    """The campaign's model calibrated on its tests (paper §5): the calibration node runs first, on its own
+    (the blade and disk EMA it needs are stored for the main run), then the model is scaled here, before the
+    main run's workers fork, so that they inherit it (a model is never pickled to a worker)."""
+    from rom.calibration import apply_calibration
+
+    from .stages.models import model_key
+
+    src = campaign_sources(c, nominal.value, store, opts, nominal=nominal)
+    res = Runner(store, opts.workers, say).run(p, ["calibration"], src)
+    cal = res["calibration"]
+    if cal.disk is None and cal.blade is None:
+        return nominal
+    key = (nominal.key, repr(cal.to_dict()))
+    if key not in calibrated:
+        bd = apply_calibration(nominal.value, cal.disk, cal.blade)
+        calibrated[key] = Source(bd, model_key(bd))
+    return calibrated[key]
+
+
 def _graph(campaigns: list[Campaign], opts: RunOptions, store: Store, say) -> tuple[Pipeline, dict, list[str]]:
+    from .stages.models import model_key
+
     pipeline, sources, prefixes = Pipeline(), {}, _prefixes(campaigns)
-    models: dict[str, object] = {}
+    models: dict[str, Source] = {}
+    calibrated: dict = {}
     for c, pre in zip(campaigns, prefixes, strict=True):
         spec = repr(sorted(c.model.items())) + (str(c.root) if c.model.get("family") == "imported" else "")
         if spec not in models:
             say(f"FE model of {c.name} (its hash keys the reduced models)")
-            models[spec] = load_model(c)
+            bd = load_model(c)
+            models[spec] = Source(bd, model_key(bd))
         p = campaign_pipeline(c, opts)
+        model = models[spec]
+        if opts.calibrate:
+            say(f"calibrating the FE model's materials on the tests of {c.name} (paper §5)")
+            model = _calibrated(c, p, models[spec], store, opts, say, calibrated)
         p = p.prefixed(pre.rstrip("/")) if pre else p
         for n in p:
             pipeline.add(n)
-        sources.update({pre + k: v for k, v in campaign_sources(c, models[spec], store, opts).items()})
+        src = campaign_sources(c, model.value, store, opts, nominal=models[spec])
+        sources.update({pre + k: v for k, v in src.items()})
     return pipeline, sources, prefixes
 
 

@@ -14,7 +14,7 @@ from .modal import ModalModel
 from .order import fit_auto_order
 from .picks import Picks, fit_with_picks, load_picks, save_picks
 from .stabilization import StabilityCriteria
-from .uff import read_frfs, read_modes, read_nodes, read_uff, read_units, write_frfs, write_modes
+from .uff import read_coherence, read_frfs, read_modes, read_nodes, read_uff, read_units, write_frfs, write_modes
 
 # What a user calls. The estimators' internals (lscf, lsrf, lsfd, stabilize, select_*, dominance, …) are
 # importable from their own modules (ema.lscf, ema.stabilization, ema.selection, ema.lsfd, ema.mac).
@@ -41,6 +41,7 @@ __all__ = [
     "nodal_diameters",
     "pair_by_frequency",
     "pair_modes",
+    "read_coherence",
     "read_frfs",
     "read_modes",
     "read_nodes",

@@ -1,8 +1,9 @@
-"""UFF input/output over pyuff: FRFs (58, 58b), nodes (15, 2411), units (164) and modes (55).
+"""UFF input/output over pyuff: FRFs (58, 58b), their coherence, nodes (15, 2411), units (164) and modes (55).
 
 Reading is strict: anything that is not an FRF, not supported, inconsistent or malformed raises
 :class:`~ema.errors.UFFError`, a ``ValueError`` whose one-line message names the file, the data set
-(0-based index in the file) and the field.
+(0-based index in the file) and the field. Coherence data sets (58, function type 6, one per FRF) may sit
+beside the FRFs: :func:`read_uff` checks and passes over them, :func:`read_coherence` returns them.
 """
 
 from __future__ import annotations
@@ -26,6 +27,7 @@ from .modal import ModalModel
 __all__ = [
     "FUNCTION_TYPES",
     "read_uff",
+    "read_coherence",
     "read_frfs",
     "read_nodes",
     "read_units",
@@ -291,6 +293,54 @@ def _frf_from_set(
     return rsp, ref, x, data.astype(np.complex128), use_form, units
 
 
+def _coherence_from_set(dset: dict, path: Path, index: int) -> tuple[DOF, DOF, np.ndarray, np.ndarray]:
+    """(response, reference, axis, values) of a coherence data set (58, function type 6), checked."""
+    abscissa = int(dset.get("abscissa_spec_data_type", 0))
+    if abscissa not in (0, 18):
+        raise UFFError(str(path), f"coherence abscissa is type {abscissa}, expected frequency (18)", index,
+                       "abscissa_spec_data_type")
+    x = np.asarray(_field(dset, "x", path, index), dtype=np.float64).reshape(-1)
+    data = np.asarray(_field(dset, "data", path, index)).reshape(-1)
+    num_pts = int(dset.get("num_pts", data.size))
+    if data.size != num_pts or x.size != num_pts:
+        raise UFFError(
+            str(path), f"coherence header announces {num_pts} points but {data.size} values and {x.size} abscissae"
+            " were read (short or damaged data set)", index, "num_pts",
+        )
+    if np.iscomplexobj(data):
+        raise UFFError(str(path), f"coherence must be real, found complex values (ord_data_type "
+                       f"{dset.get('ord_data_type')})", index, "ord_data_type")
+    data = data.astype(np.float64)
+    # float32 files round values at 1 up by a few 1e-8
+    if not np.all(np.isfinite(data)) or np.any(data < 0) or np.any(data > 1 + 1e-6):
+        bad = data[~(np.isfinite(data) & (data >= 0) & (data <= 1 + 1e-6))][0]
+        raise UFFError(str(path), f"coherence value {bad:.6g} outside [0, 1] (damaged data set)", index, "data")
+    rsp = (int(_field(dset, "rsp_node", path, index)), int(_field(dset, "rsp_dir", path, index)))
+    ref = (int(_field(dset, "ref_node", path, index)), int(_field(dset, "ref_dir", path, index)))
+    return rsp, ref, x, np.minimum(data, 1.0)
+
+
+def _coherence_matrix(path: Path, records: list, outputs: list, inputs: list, x0: np.ndarray) -> np.ndarray | None:
+    """Coherence records on the FRF matrix's layout (NaN where an FRF has none); None without records."""
+    if not records:
+        return None
+    coh = np.full((len(outputs), len(inputs), x0.size), np.nan)
+    seen: dict[tuple[int, int], int] = {}
+    for index, rsp, ref, x, data in records:
+        if rsp not in outputs or ref not in inputs:
+            raise UFFError(str(path), f"coherence for {rsp} / {ref} but the file has no such FRF", index, "rsp_node")
+        if x.shape != x0.shape or not np.allclose(x, x0, rtol=1e-9, atol=0.0):
+            raise UFFError(str(path), f"coherence axis of {x.size} lines [{x[0] if x.size else '-'}, "
+                           f"{x[-1] if x.size else '-'}] Hz differs from the FRFs' {x0.size} lines", index, "x")
+        key = (outputs.index(rsp), inputs.index(ref))
+        if key in seen:
+            raise UFFError(str(path), f"coherence {rsp} / {ref} appears twice (also data set {seen[key]})", index,
+                           "rsp_node")
+        seen[key] = index
+        coh[key] = data
+    return coh
+
+
 def read_nodes(path: str | os.PathLike) -> Nodes | None:
     """Node coordinates from the data sets 15 / 2411 of a UFF file (None when there are none).
 
@@ -363,6 +413,8 @@ def read_uff(
 ) -> FRFSet:
     """Read the FRFs (UFF 58 / 58b, function type 4) of one file into an :class:`FRFSet`.
 
+    Coherence data sets (function type 6) are checked (see :func:`read_coherence`) and left out of the FRFs.
+
     Parameters
     ----------
     path : path-like
@@ -370,9 +422,9 @@ def read_uff(
         FRF form to assume when the file does not state it (ordinate type 8 / 11 / 12 or a unit label);
         an error when it contradicts the file.
     skip_other : bool
-        Skip data sets 58 that are not FRFs (coherence, spectra ...) instead of refusing the file, as
-        long as at least one FRF is present. Other data set types (nodes, units, geometry) are always
-        accepted alongside.
+        Skip data sets 58 that are neither FRFs nor coherence (spectra, multiple coherence ...) instead
+        of refusing the file, as long as at least one FRF is present. Other data set types (nodes, units,
+        geometry) are always accepted alongside.
     nonfinite : {"refuse", "drop"}
         What to do with NaN or infinite values: refuse the file (default), or remove the lines that hold
         them from every FRF, with a warning naming the data sets and frequencies dropped. A non-finite 0 Hz
@@ -389,11 +441,41 @@ def read_uff(
         No FRF in the file, a non-FRF or unsupported 58 data set, inconsistent axes or forms, duplicate or
         missing (response, reference) pairs, a malformed data set, a file that ends inside a data set
         (truncated, or without its final ``-1``), a binary data set shorter than its header says, non-finite
-        values (with ``nonfinite="refuse"``), an FRF that is zero or constant on every line, or a path that
-        is a directory.
+        values (with ``nonfinite="refuse"``), an FRF that is zero or constant on every line, a damaged
+        coherence data set, or a path that is a directory.
     FileNotFoundError
         ``path`` does not exist.
     """
+    return _read_file(path, form, skip_other, nonfinite)[0]
+
+
+def read_coherence(
+    path: str | os.PathLike, form: str | None = None, skip_other: bool = False, nonfinite: str = "refuse"
+) -> np.ndarray | None:
+    """The coherence data sets (UFF 58 / 58b, function type 6) of one file, on its FRFs' layout.
+
+    Parameters are those of :func:`read_uff`; the file is read and checked as it reads it.
+
+    Returns
+    -------
+    ndarray of float64, shape (n_outputs, n_inputs, n_freq), or None
+        ``coh[o, i]`` belongs to ``read_uff(path).H[o, i]`` (same outputs, inputs and lines, also after
+        ``nonfinite="drop"``); NaN for an FRF without a coherence data set. None when the file has none.
+
+    Raises
+    ------
+    UFFError
+        Everything :func:`read_uff` refuses, and a coherence data set that is damaged (point count, values
+        outside [0, 1] or non-finite, complex values), on another axis than the FRFs, for a
+        (response, reference) pair without an FRF, or present twice.
+    """
+    return _read_file(path, form, skip_other, nonfinite)[1]
+
+
+def _read_file(
+    path: str | os.PathLike, form: str | None, skip_other: bool, nonfinite: str
+) -> tuple[FRFSet, np.ndarray | None]:
+    """The FRFs and the coherence of one file (see :func:`read_uff`, :func:`read_coherence`)."""
     if form is not None and form not in FRF_FORMS:
         raise ValueError(f"form {form!r} not one of {sorted(FRF_FORMS)}")
     if nonfinite not in ("refuse", "drop"):
@@ -405,9 +487,13 @@ def read_uff(
         kinds = ", ".join(str(t) for t in dict.fromkeys(types.tolist()))
         raise UFFError(str(path), f"no FRF in file (no data set 58; data set types present: {kinds})")
     records: list[tuple[int, DOF, DOF, np.ndarray, np.ndarray, str, str]] = []
+    coh_records: list[tuple[int, DOF, DOF, np.ndarray, np.ndarray]] = []
     first_refusal: UFFError | None = None
     for index in idx58:
         dset = _read_set(uff, path, index, 58)
+        if dset.get("func_type") == 6:  # coherence beside the FRFs (as write_frfs(coherence=...) puts it)
+            coh_records.append((index, *_coherence_from_set(dset, path, index)))
+            continue
         try:
             rsp, ref, x, data, frm, units = _frf_from_set(dset, path, index, form)
         except UFFError as err:
@@ -418,8 +504,34 @@ def read_uff(
             continue
         records.append((index, rsp, ref, x, data, frm, units))
     if not records:
-        assert first_refusal is not None
+        if first_refusal is None:
+            raise UFFError(str(path), "no FRF in file (only coherence data sets)")
         raise first_refusal
+    x0, H, outputs, inputs, seen = _frf_matrix(path, records)
+    form0, units0 = records[0][5], records[0][6]
+    coherence = _coherence_matrix(path, coh_records, outputs, inputs, x0)
+    x_all = x0
+    x0, H = _nonfinite(path, x0, H, seen, nonfinite)
+    if coherence is not None and x0.size != x_all.size:
+        coherence = coherence[..., np.isin(x_all, x0)]
+    nodes = read_nodes(path) if any(t in (15, 2411) for t in types) else None
+    units = read_units(path) if 164 in types else None
+    frf = FRFSet(
+        freq_hz=x0,
+        H=H,
+        outputs=tuple(outputs),
+        inputs=tuple(inputs),
+        form=form0,
+        units=units0,
+        nodes=nodes,
+        unit_system=units,
+        sources=(str(path),),
+    )
+    return frf, coherence
+
+
+def _frf_matrix(path: Path, records: list) -> tuple[np.ndarray, np.ndarray, list, list, dict]:
+    """The FRF records of one file as (axis, H, outputs, inputs, {(o, i): data set}), checked for consistency."""
     i0, _, _, x0, _, form0, units0 = records[0]
     outputs: list[DOF] = []
     inputs: list[DOF] = []
@@ -459,20 +571,7 @@ def read_uff(
         why = _signal_problem(H[o, i])
         if why is not None:
             raise UFFError(str(path), f"FRF {outputs[o]} / {inputs[i]}: {why}", index, "data")
-    x0, H = _nonfinite(path, x0, H, seen, nonfinite)
-    nodes = read_nodes(path) if any(t in (15, 2411) for t in types) else None
-    units = read_units(path) if 164 in types else None
-    return FRFSet(
-        freq_hz=x0,
-        H=H,
-        outputs=tuple(outputs),
-        inputs=tuple(inputs),
-        form=form0,
-        units=units0,
-        nodes=nodes,
-        unit_system=units,
-        sources=(str(path),),
-    )
+    return x0, H, outputs, inputs, seen
 
 
 def _nonfinite(
@@ -497,7 +596,7 @@ def _nonfinite(
                        "data")
     msg = (f"{path}: dropped {line_ranges(freq, drop)} from every FRF: non-finite values in data set"
            f"{'s' if len(hit) > 1 else ''} {', '.join(str(k) for k, _ in hit)}")
-    warnings.warn(msg, stacklevel=3)
+    warnings.warn(msg, stacklevel=4)  # the caller of read_uff / read_coherence
     return freq[~drop], H[:, :, ~drop]
 
 
@@ -579,7 +678,7 @@ def _even_axis(freq: np.ndarray) -> bool:
 
 
 def _as_single(raw: bytes) -> bytes:
-    """pyuff's 58b output (complex double, ordinate type 6) rewritten as complex single (type 5).
+    """pyuff's 58b output (double: complex type 6, real type 4) rewritten as single (types 5 and 2).
 
     pyuff writes every binary value as a double whatever record 7 says, so single precision is made here:
     each data set's payload is cast to little-endian float32, and the ID line's byte count and record 7's
@@ -594,20 +693,49 @@ def _as_single(raw: bytes) -> bytes:
         header = lines[:13]
         payload = block[len(b"".join(header)):]
         id_line, rec7 = header[1].decode("ascii"), header[8].decode("ascii")
-        if id_line[6:13] != "b     1" or int(rec7[0:10]) != 6:
-            raise EMAError("single-precision UFF: expected pyuff's little-endian complex-double 58b output")
+        single = {6: 5, 4: 2}.get(int(rec7[0:10]))  # complex FRFs, real coherence
+        if id_line[6:13] != "b     1" or single is None:
+            raise EMAError("single-precision UFF: expected pyuff's little-endian double 58b output")
         n_values = len(payload) // 8
         values = np.frombuffer(payload[: 8 * n_values], dtype="<f8").astype("<f4")
         header[1] = (id_line[:31] + f"{values.nbytes:12d}" + id_line[43:]).encode("ascii")
-        header[8] = (f"{5:10d}" + rec7[10:]).encode("ascii")
+        header[8] = (f"{single:10d}" + rec7[10:]).encode("ascii")
         out += [raw[done:start], b"".join(header), values.tobytes(), payload[8 * n_values:]]
         done = end
     out.append(raw[done:])
     return b"".join(out)
 
 
+def _dset_58(binary: bool, id1: str, func_type: int, rsp: DOF, ref: DOF, freq: np.ndarray, even: bool,
+             data: np.ndarray, ordinate: tuple[int, str], denom: int) -> dict:
+    """One pyuff data set 58: an FRF (function type 4, complex) or a coherence (type 6, real)."""
+    return pyuff.prepare_58(
+        binary=int(bool(binary)), id1=id1[:80], id2="NONE", id3="NONE", id4="NONE", id5="NONE",
+        func_type=func_type, rsp_node=int(rsp[0]), rsp_dir=int(rsp[1]), ref_node=int(ref[0]), ref_dir=int(ref[1]),
+        ord_data_type=6 if np.iscomplexobj(data) else 4, abscissa_spacing=int(even), abscissa_min=float(freq[0]),
+        abscissa_inc=float(freq[1] - freq[0]) if even else 0.0, abscissa_spec_data_type=18,
+        abscissa_axis_units_lab="Hz", ordinate_spec_data_type=ordinate[0], ordinate_axis_units_lab=ordinate[1][:20],
+        orddenom_spec_data_type=denom, orddenom_axis_units_lab="NONE", data=np.ascontiguousarray(data),
+        x=np.ascontiguousarray(freq), rsp_ent_name="NONE", ref_ent_name="NONE",
+    )
+
+
+def _check_coherence(path: Path, frf: FRFSet, coherence: Any) -> np.ndarray:
+    """``coherence`` as float64 of the FRFs' shape, every value in [0, 1]; EMAError otherwise."""
+    coh = np.asarray(coherence, dtype=np.float64)
+    if coh.shape != frf.H.shape:
+        raise EMAError(f"{path}: coherence has shape {coh.shape}, expected the FRFs' {frf.H.shape}")
+    bad = ~(np.isfinite(coh) & (coh >= 0) & (coh <= 1))
+    if bad.any():
+        o, i, f = (int(k) for k in np.argwhere(bad)[0])
+        raise EMAError(f"{path}: coherence {frf.outputs[o]} / {frf.inputs[i]} is {coh[o, i, f]!r} at "
+                       f"{frf.freq_hz[f]} Hz, expected a value in [0, 1]")
+    return coh
+
+
 def write_frfs(
-    path: str | os.PathLike, frf: FRFSet, binary: bool = True, id1: str = "bladetwin FRF", precision: str = "double"
+    path: str | os.PathLike, frf: FRFSet, binary: bool = True, id1: str = "bladetwin FRF", precision: str = "double",
+    coherence: np.ndarray | None = None,
 ) -> None:
     """Write an :class:`FRFSet` as UFF 58 data sets (one per FRF), atomically.
 
@@ -624,25 +752,30 @@ def write_frfs(
     precision : {"double", "single"}
         Binary value size. "single" (ordinate type 5, IEEE float32: 6e-8 relative, far below any measured
         FRF's noise) halves the file, as many analyser exports do; the virtual rig writes its campaigns so.
+    coherence : ndarray, shape (n_outputs, n_inputs, n_freq), optional
+        Ordinary coherence of each FRF, in [0, 1]: written after the FRFs as one data set 58 per FRF
+        (function type 6 "coherence", same DOFs and axis, real values, ordinate type 0 "unknown", as
+        analysers export it). :func:`read_coherence` reads it back; :func:`read_uff` passes over it.
 
     Raises
     ------
     EMAError
         A NaN or infinite value on a line above 0 Hz: UFF has no code for a missing value, and pyuff would
-        write 0 (or the largest double) in its place.
+        write 0 (or the largest double) in its place. A coherence of the wrong shape or outside [0, 1].
 
     Notes
     -----
     The frequency axis is written as even spacing only when the ASCII header's ``%13.5e`` minimum and
     increment rebuild it exactly; otherwise every abscissa is written with the values. A 0 Hz line with a
     non-finite value (a receptance converted from another form, a synthesis with residual terms) is left
-    out of the file, as it is left out of every fit.
+    out of the file, as it is left out of every fit (and so is its coherence).
     """
     path = Path(path)
     if precision not in ("double", "single"):
         raise EMAError(f"precision {precision!r}: expected 'double' or 'single'")
     if precision == "single" and not binary:
         raise EMAError("precision 'single' needs binary=True (ASCII 58 values are written as text)")
+    coh = None if coherence is None else _check_coherence(path, frf, coherence)
     bad = ~np.isfinite(frf.H)
     if bad.any():
         dc = frf.freq_hz == 0
@@ -655,41 +788,16 @@ def write_frfs(
             )
         log.info("%s: 0 Hz line left out (non-finite values there)", path)
         frf = frf.band(float(frf.freq_hz[~dc][0]), float(frf.freq_hz[-1]))
+        coh = None if coh is None else coh[..., ~dc]
     freq = frf.freq_hz
     even = _even_axis(freq)
-    units = frf.units or _FORM_UNITS[frf.form]
-    dsets = []
-    for o, rsp in enumerate(frf.outputs):
-        for i, ref in enumerate(frf.inputs):
-            dsets.append(
-                pyuff.prepare_58(
-                    binary=int(bool(binary)),
-                    id1=id1[:80],
-                    id2="NONE",
-                    id3="NONE",
-                    id4="NONE",
-                    id5="NONE",
-                    func_type=4,
-                    rsp_node=int(rsp[0]),
-                    rsp_dir=int(rsp[1]),
-                    ref_node=int(ref[0]),
-                    ref_dir=int(ref[1]),
-                    ord_data_type=6,
-                    abscissa_spacing=int(even),
-                    abscissa_min=float(freq[0]),
-                    abscissa_inc=float(freq[1] - freq[0]) if even else 0.0,
-                    abscissa_spec_data_type=18,
-                    abscissa_axis_units_lab="Hz",
-                    ordinate_spec_data_type=_FORM_ORDINATE[frf.form],
-                    ordinate_axis_units_lab=units[:20],
-                    orddenom_spec_data_type=13,
-                    orddenom_axis_units_lab="NONE",
-                    data=np.ascontiguousarray(frf.H[o, i]),
-                    x=np.ascontiguousarray(freq),
-                    rsp_ent_name="NONE",
-                    ref_ent_name="NONE",
-                )
-            )
+    ordinate = (_FORM_ORDINATE[frf.form], frf.units or _FORM_UNITS[frf.form])
+    pairs = [(o, i) for o in range(frf.n_outputs) for i in range(frf.n_inputs)]
+    dsets = [_dset_58(binary, id1, 4, frf.outputs[o], frf.inputs[i], freq, even, frf.H[o, i], ordinate, 13)
+             for o, i in pairs]
+    if coh is not None:
+        dsets += [_dset_58(binary, id1, 6, frf.outputs[o], frf.inputs[i], freq, even, coh[o, i], (0, "NONE"), 0)
+                  for o, i in pairs]
     _atomic_write(path, dsets, single=precision == "single")
 
 

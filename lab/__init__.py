@@ -14,19 +14,20 @@ from .campaign import CampaignInfo, CampaignSpec, default_known_joints, simulate
 from .films import FilmMeta, FilmParams, render_film, write_film
 from .model_error import ModelError, case_c, rom_deltas
 from .patterns import PressureParams, TruePressure, flank_coordinates, simulate_pressure
-from .rig import RigSetup, dof_label, measure, peak_snr, synthesize_mobility
+from .rig import RigSetup, damping_ratios, dof_label, measure, peak_snr, synthesize_mobility
 from .truth import (
+    REALISM,
     BladeVariation,
     TruthAssembly,
     TruthParams,
     TruthTwin,
     assemble_truth,
-    damping_ratios,
     make_truth_twin,
     solve_truth,
 )
 
 __all__ = [
+    "REALISM",
     "BladeVariation",
     "CampaignInfo",
     "CampaignSpec",

@@ -10,7 +10,9 @@ d1b/joint_NN.uff              disk + blade NN in slot NN
 assembly/assembly.uff         the full bladed disk
 films/joint_NN_L.png, _R.png  film scans of the known joints
 truth/truth.json              what the identification never sees (seed, deltas, exact frequencies, damping)
-truth/patterns.npz            true contact grids L, R: bool, shape (n_blades, rows, cols)
+truth/patterns.npz            true contact grids L, R: bool, shape (n_blades, rows, cols), in the state the
+                              films and the disk–one-blade tests saw
+truth/assembly_patterns.npz   the same after the blades were re-seated, in the full-assembly test
 truth/assembly_modes.npz      the full assembly's visible modes: frequencies_hz (n,), exact real shapes at
                               the test's outputs (n_outputs, n), the blades' share of each mode's kinetic
                               energy (n,), and the outputs' (node, direction), (n_outputs, 2)
@@ -41,12 +43,10 @@ from rom.solver import nodal_diameters
 
 from .films import ORIENTATION, FilmParams, render_film, write_film
 from .patterns import PressureParams, flank_coordinates, simulate_pressure
-from .rig import MIN_SNR, RigSetup, measure, peak_snr
+from .rig import MIN_SNR, RigSetup, canonical_degenerate, damping_ratios, measure, peak_snr
 from .truth import (
     TruthParams,
     assemble_truth,
-    canonical_degenerate,
-    damping_ratios,
     make_truth_twin,
     solve_truth,
 )
@@ -77,9 +77,9 @@ def _solve_one(job: tuple) -> tuple:
     return _solve_one_with(_TWIN, *job)
 
 
-def _solve_one_with(twin, slots, with_disk: bool, n: int) -> tuple:
-    """(measurement labels, truth modes) of one test's assembly."""
-    asm = assemble_truth(twin, slots, with_disk=with_disk)
+def _solve_one_with(twin, slots, with_disk: bool, n: int, state: str = "d1b") -> tuple:
+    """(measurement labels, truth modes) of one test's assembly, in contact ``state`` ("d1b" or "assembly")."""
+    asm = assemble_truth(twin, slots, with_disk=with_disk, state=state)
     return asm.meas_labels, solve_truth(asm, n)
 
 
@@ -111,7 +111,12 @@ def default_known_joints(n_blades: int) -> tuple[int, ...]:
 
 @dataclass(frozen=True)
 class CampaignSpec:
-    """What to simulate. ``n_blades`` and ``grid`` default to the academic twin's (paper specimen)."""
+    """What to simulate. ``n_blades`` and ``grid`` default to the academic twin's (paper specimen).
+
+    ``realism`` picks the truth twin (:data:`lab.truth.REALISM`): ``"realistic"`` (a specimen and a test that
+    differ from the model as real ones do, docs/twin.md) or ``"ideal"`` (the model's own parts, for tests that
+    isolate one stage); ``truth`` overrides it with parameters made in Python.
+    """
 
     seed: int = 0
     n_blades: int = AcademicParams.n_blades
@@ -119,10 +124,15 @@ class CampaignSpec:
     level: str = "default"
     known_joints: tuple[int, ...] | None = None
     name: str = "academic"
-    truth: TruthParams = field(default_factory=TruthParams)
+    realism: str = "realistic"
+    truth: TruthParams | None = None
     pressure: PressureParams = field(default_factory=PressureParams)
     film: FilmParams = field(default_factory=FilmParams)
     max_lines: dict = field(default_factory=lambda: dict(MAX_LINES))
+
+    def truth_params(self) -> TruthParams:
+        """The twin's parameters: ``truth`` where given, else those of the ``realism`` setting."""
+        return self.truth if self.truth is not None else TruthParams.of(self.realism)
 
     def model_params(self) -> AcademicParams:
         """The academic-twin parameters (raises ``ValueError`` naming a bad blade count, grid or level)."""
@@ -136,9 +146,9 @@ class CampaignSpec:
         """
         cmd = (f"bladetwin lab simulate --out {out} --seed {self.seed} --blades {self.n_blades} "
                f"--grid {self.grid[0]}x{self.grid[1]} --level {self.level} --known {','.join(map(str, self.known()))}"
-               f" --name {self.name}")
+               f" --name {self.name} --realism {self.realism}")
         custom = self != CampaignSpec(self.seed, self.n_blades, tuple(self.grid), self.level, self.known_joints,
-                                      self.name)
+                                      self.name, self.realism)
         return cmd + (" (plus settings made in Python: truth, pressure, film or lines)" if custom else "")
 
     def known(self) -> tuple[int, ...]:
@@ -274,7 +284,10 @@ class _CampaignWriter:
         u, v = flank_coordinates(bd)
         self.pressure = simulate_pressure(u, v, params.n_blades, rng_pressure, spec.pressure)
         self.patterns = self.pressure.patterns()
-        self.twin = make_truth_twin(bd, self.patterns, rng_truth, spec.truth)
+        node_pressure = np.stack([np.stack([self.pressure.pressure(s, f, u, v) for f in ("L", "R")])
+                                  for s in range(1, params.n_blades + 1)])
+        self.truth_params = spec.truth_params()
+        self.twin = make_truth_twin(bd, self.patterns, rng_truth, self.truth_params, node_pressure)
         self.manifest: dict = {
             "campaign": {"name": spec.name, "kind": "virtual", "n_blades": params.n_blades, "grid": list(params.grid),
                          "known_joints": list(known), "generated_by": spec.command(out),
@@ -284,10 +297,12 @@ class _CampaignWriter:
                       "grid": list(params.grid)},
             "tests": [],
             "films": [],
+            "masses": _weighed(self.twin),
         }
         pressure = self.pressure
         self.truth: dict = {"seed": spec.seed, "n_blades": params.n_blades, "grid": list(params.grid),
-                            "known_joints": list(known), "truth_params": _jsonable(spec.truth),
+                            "known_joints": list(known), "realism": spec.realism,
+                            "truth_params": _jsonable(self.truth_params), **_specimen_truth(self.twin),
                             "blade_variations": [v.to_dict() for v in self.twin.variations],
                             "contact_fraction_pct": {"L": (100 * pressure.fractions[:, 0]).tolist(),
                                                      "R": (100 * pressure.fractions[:, 1]).tolist()}}
@@ -308,7 +323,10 @@ class _CampaignWriter:
         if key in self.presolved:
             meas_labels, modes = self.presolved.pop(key)
         else:
-            meas_labels, modes = _solve_one_with(self.twin, slots, with_disk, n_wanted + n_wanted // 2 + 6)
+            meas_labels, modes = _solve_one_with(self.twin, slots, with_disk, n_wanted + n_wanted // 2 + 6,
+                                                 "assembly" if kind == "assembly" else "d1b")
+        # The test day's temperature scales every frequency of that day (1 on the ideal twin).
+        modes = replace(modes, frequencies_hz=modes.frequencies_hz * self.twin.day_factor(kind))
         if not with_disk:
             # A free blade's points carry the same labels on every blade (nodes 1..3): one test rig, many blades.
             modes = replace(modes, meas_labels=[("blade", 0, p, d) for _, _, p, d in modes.meas_labels])
@@ -316,7 +334,7 @@ class _CampaignWriter:
         inputs = inputs_of(meas_labels)
         modes = canonical_degenerate(modes, inputs)
         f = modes.frequencies_hz
-        zeta = damping_ratios(f.size, self.rng_damping, self.spec.truth.damping_range)
+        zeta = damping_ratios(f.size, self.rng_damping, self.truth_params.damping_range)
         # Band from the modes a test can see: first a generous one, then the first n_wanted visible modes.
         snr = peak_snr(modes, zeta, _setup(f[0], f[-1], max_lines), outputs, inputs)
         seen = np.flatnonzero(snr >= MIN_SNR)
@@ -422,12 +440,33 @@ class _CampaignWriter:
         R = np.stack([p.R for p in self.patterns])
         with open(self.root / "truth" / "patterns.npz", "wb") as fh:
             np.savez_compressed(fh, L=L, R=R)
+        seated = self.twin.patterns_of("assembly")
+        with open(self.root / "truth" / "assembly_patterns.npz", "wb") as fh:
+            np.savez_compressed(fh, L=np.stack([p.L for p in seated]), R=np.stack([p.R for p in seated]))
         if self.assembly_modes is not None:
             with open(self.root / "truth" / "assembly_modes.npz", "wb") as fh:
                 np.savez_compressed(fh, **self.assembly_modes)
         (self.root / "truth" / "truth.json").write_text(json.dumps(self.truth, indent=1), encoding="utf-8")
         (self.root / "campaign.toml").write_text(tomli_w.dumps(self.manifest), encoding="utf-8")
         return self.n_files
+
+
+def _mass_kg(M) -> float:
+    """A component's mass (kg): the x-translation's kinetic energy of its mass matrix, 1ᵀ M_xx 1."""
+    return float(M[0::3, 0::3].sum())
+
+
+def _weighed(twin) -> dict:
+    """What a lab's balance says (manifest ``[masses]``): the disk to 0.1 g, each blade to 1 mg (kg)."""
+    return {"disk_kg": round(_mass_kg(twin.truth_disk.M), 4),
+            "blade_kg": [round(_mass_kg(b.M), 6) for b in twin.blades]}
+
+
+def _specimen_truth(twin) -> dict:
+    """The specimen's own effects for ``truth.json``: material offsets, sector moduli, test-day factors."""
+    return {"material_offsets": dict(twin.materials), "day_factors": dict(twin.day_factors),
+            "disk_sector_moduli": None if twin.sector_moduli is None else twin.sector_moduli.tolist(),
+            "truth_mesh_level": twin.bd.params.level}
 
 
 def _blade_deltas_pct(freqs: list[list[float]]) -> list[list[float]]:

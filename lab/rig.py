@@ -28,7 +28,8 @@ from ema.frf import FRFSet
 from ema.numbering import dof_label, rom_modal_model
 from rom.fe_assembly import AssemblyModes
 
-__all__ = ["RigSetup", "dof_label", "rom_modal_model", "synthesize_mobility", "measure", "peak_snr", "MIN_SNR"]
+__all__ = ["RigSetup", "dof_label", "rom_modal_model", "synthesize_mobility", "measure", "peak_snr", "MIN_SNR",
+           "canonical_degenerate", "damping_ratios"]
 
 #: A mode belongs to a test when its resonance peak stands at least this far above the noise floor in some
 #: FRF (about 30 dB): weaker modes are lost in the noise, as in a real test.
@@ -150,3 +151,46 @@ def peak_snr(
     w = 2 * np.pi * modes.frequencies_hz
     peak = np.abs(phi_o[:, None, :] * phi_i[None, :, :]) / (2 * np.asarray(zeta) * w)[None, None, :]
     return np.max(peak / floor[:, :, None], axis=(0, 1))
+
+
+def canonical_degenerate(modes: AssemblyModes, inputs: Sequence[int], rtol: float = 1e-7) -> AssemblyModes:
+    """The same modes with every group of repeated frequencies in a basis fixed by the hammer ``inputs``.
+
+    A cyclic disk's double modes are one eigenspace: the solver returns an arbitrary basis of it, so the
+    response of each member at the hammer (and whether a test "sees" it) would change from run to run. Here
+    each group (frequencies within ``rtol``) is rotated by the SVD of its rows at the inputs: the first members
+    carry the input participation in decreasing order, the rest have none (a hammer excites only that
+    combination). The group's frequencies become their mean and each shape's largest value is positive, so
+    the result does not depend on the solver's basis or order.
+
+    Parameters
+    ----------
+    modes : AssemblyModes
+    inputs : sequence of int
+        Rows of ``modes.meas_shapes`` that are hammer points.
+    """
+    f = np.array(modes.frequencies_hz, dtype=np.float64)
+    shapes = np.array(modes.meas_shapes, dtype=np.float64)
+    energy = None if modes.blade_energy is None else np.array(modes.blade_energy, dtype=np.float64)
+    start = 0
+    while start < f.size:
+        stop = start + 1
+        while stop < f.size and f[stop] <= f[start] * (1 + rtol):
+            stop += 1
+        if stop - start > 1:
+            g = slice(start, stop)
+            _, _, vt = np.linalg.svd(shapes[list(inputs), g], full_matrices=True)
+            shapes[:, g] = shapes[:, g] @ vt.T
+            f[g] = f[g].mean()
+            if energy is not None:
+                energy[g] = energy[g].mean()
+        start = stop
+    k = np.argmax(np.abs(shapes), axis=0)
+    shapes *= np.where(shapes[k, np.arange(shapes.shape[1])] < 0, -1.0, 1.0)
+    return AssemblyModes(f, shapes, modes.meas_labels, rigid_shapes=modes.rigid_shapes, blade_energy=energy)
+
+
+def damping_ratios(n_modes: int, rng: np.random.Generator, damping_range: tuple[float, float]) -> np.ndarray:
+    """Modal damping ratios, log-uniform in ``damping_range`` and varying from mode to mode, shape (n_modes,)."""
+    lo, hi = damping_range
+    return np.exp(rng.uniform(np.log(lo), np.log(hi), n_modes))

@@ -13,7 +13,8 @@ from dataclasses import dataclass
 from .component import Component
 from .solver import solve_modes
 
-__all__ = ["Calibration", "calibrate_modulus", "calibrate_bladed_disk"]
+__all__ = ["Calibration", "calibrate_modulus", "calibrate_bladed_disk", "MaterialCalibration", "component_mass",
+           "calibrate_material", "scaled_component", "apply_calibration"]
 
 
 @dataclass(frozen=True)
@@ -104,3 +105,101 @@ def calibrate_bladed_disk(bd, disk_target_hz: float | None = 1090.6, blade_targe
         blade = cal.component
         params = replace(params, blade_material=replace(params.blade_material, E=cal.E_after))
     return replace(bd, params=params, disk=disk, blade=blade)
+
+
+@dataclass(frozen=True)
+class MaterialCalibration:
+    """E and ρ of one homogeneous component calibrated on the tests (paper §5, Table 4).
+
+    ρ comes from the weighed mass where given (ρ' = ρ m_measured / m_model), then E from the matched
+    frequency: every eigenvalue scales with E/ρ, so ``E' = E (ρ'/ρ) (f_target / f_model)²``.
+
+    Attributes
+    ----------
+    component : str
+        ``"disk"`` or ``"blade"``.
+    target_hz : float
+        The test's frequency matched (disk: its first mode; blade: √ of the blades' mean f₁²).
+    model_hz : float
+        The uncalibrated model's frequency of that mode.
+    E_before, E_after : float
+        Young's modulus (Pa).
+    rho_before, rho_after : float
+        Density (kg/m³).
+    rho_source : str
+        ``"masses"`` (the manifest's ``[masses]``) or ``"nominal"`` (not weighed: ρ kept).
+    mass_kg, model_mass_kg : float or None, float
+        The weighed mass (None where not given) and the uncalibrated model's.
+    """
+
+    component: str
+    target_hz: float
+    model_hz: float
+    E_before: float
+    E_after: float
+    rho_before: float
+    rho_after: float
+    rho_source: str
+    mass_kg: float | None
+    model_mass_kg: float
+
+    @property
+    def E_scale(self) -> float:
+        """E_after / E_before: the factor on the component's stiffness matrix."""
+        return self.E_after / self.E_before
+
+    @property
+    def rho_scale(self) -> float:
+        """ρ_after / ρ_before: the factor on the component's mass matrix."""
+        return self.rho_after / self.rho_before
+
+    def to_dict(self) -> dict:
+        return {"target_hz": self.target_hz, "model_hz": self.model_hz, "E_before_pa": self.E_before,
+                "E_after_pa": self.E_after, "E_change_pct": 100 * (self.E_scale - 1), "rho_before_kg_m3":
+                self.rho_before, "rho_after_kg_m3": self.rho_after, "rho_change_pct": 100 * (self.rho_scale - 1),
+                "rho_source": self.rho_source, "mass_kg": self.mass_kg, "model_mass_kg": self.model_mass_kg}
+
+
+def component_mass(component: Component) -> float:
+    """A component's mass (kg): the kinetic energy of a unit x-translation, 1ᵀ M_xx 1 (node-major DOFs)."""
+    return float(component.M[0::3, 0::3].sum())
+
+
+def calibrate_material(component: str, E: float, rho: float, model_hz: float, target_hz: float,
+                       model_mass_kg: float, mass_kg: float | None = None) -> MaterialCalibration:
+    """E (and ρ, where the component was weighed) that put the model's frequency on ``target_hz``.
+
+    Pure arithmetic on the model's present frequency, with no solve: see :class:`MaterialCalibration`.
+    """
+    for name, v in (("model_hz", model_hz), ("target_hz", target_hz), ("model_mass_kg", model_mass_kg)):
+        if not (math.isfinite(v) and v > 0):
+            raise ValueError(f"{component}: {name} must be a positive number, got {v!r}")
+    if mass_kg is not None and not (math.isfinite(mass_kg) and mass_kg > 0):
+        raise ValueError(f"{component}: mass_kg must be a positive mass in kg, got {mass_kg!r}")
+    rho_scale = 1.0 if mass_kg is None else mass_kg / model_mass_kg
+    E_after = E * rho_scale * (target_hz / model_hz) ** 2
+    return MaterialCalibration(component, float(target_hz), float(model_hz), float(E), float(E_after), float(rho),
+                               float(rho * rho_scale), "nominal" if mass_kg is None else "masses",
+                               None if mass_kg is None else float(mass_kg), float(model_mass_kg))
+
+
+def scaled_component(component: Component, cal: MaterialCalibration) -> Component:
+    """The component with K × E_scale and M × ρ_scale (a homogeneous material: exact), ``meta`` updated."""
+    meta = dict(component.meta, E=cal.E_after, rho=cal.rho_after)
+    M = component.M if cal.rho_scale == 1 else component.M * cal.rho_scale
+    return Component(component.name, component.K * cal.E_scale, M, component.node_ids, component.coords,
+                     dict(component.node_sets), meta, component.elements)
+
+
+def apply_calibration(bd, disk: MaterialCalibration | None, blade: MaterialCalibration | None):
+    """A ``BladedDisk`` whose disk and blade carry the calibrated E and ρ (``None`` leaves that component)."""
+    from dataclasses import replace
+
+    params, new_disk, new_blade = bd.params, bd.disk, bd.blade
+    if disk is not None:
+        new_disk = scaled_component(bd.disk, disk)
+        params = replace(params, disk_material=replace(params.disk_material, E=disk.E_after, rho=disk.rho_after))
+    if blade is not None:
+        new_blade = scaled_component(bd.blade, blade)
+        params = replace(params, blade_material=replace(params.blade_material, E=blade.E_after, rho=blade.rho_after))
+    return replace(bd, params=params, disk=new_disk, blade=new_blade)

@@ -13,7 +13,20 @@ from pathlib import Path
 
 from rom.cache import hash_inputs
 
-from . import bias, dataset, full, knn, measured, models, patterns, posterior, refinement, rom_update, validation
+from . import (
+    bias,
+    calibration,
+    dataset,
+    full,
+    knn,
+    measured,
+    models,
+    patterns,
+    posterior,
+    refinement,
+    rom_update,
+    validation,
+)
 from .graph import Node, Pipeline
 from .runner import Source
 
@@ -51,6 +64,9 @@ class RunOptions:
         posterior shares its features, and it takes a second) but is not refined or reported.
     n_components : int or None
         PCA components per flank of the posterior's prior; default: enough for 95 % of the films' variance.
+    calibrate : bool
+        Calibrate E and ρ of the disk and the blades on the tests before any reduction (paper §5, Table 4;
+        :mod:`bladetwin.stages.calibration`); ``False`` keeps the model's materials.
     rom : {"updated", "paper"}
         ``"updated"`` (default) also calibrates the ROM beyond Eq. 19 on the disk–one-blade tests (contact
         stiffness, in-situ blade corrections: :mod:`identify.rom_update`) and validates it beside the paper's;
@@ -72,6 +88,7 @@ class RunOptions:
     method: str = "both"
     n_components: int | None = None
     rom: str = "updated"
+    calibrate: bool = True
 
     def __post_init__(self) -> None:
         if self.method not in METHODS:
@@ -139,11 +156,16 @@ def identify_inputs(campaign, opts: RunOptions) -> list[str]:
             and (n != "numerical" or _has_reference(campaign))]
 
 
-def campaign_sources(campaign, bd, store, opts: RunOptions) -> dict[str, Source]:
-    """The values a campaign's pipeline starts from, each with the key its dependants hash."""
+def campaign_sources(campaign, bd, store, opts: RunOptions, nominal: Source | None = None) -> dict[str, Source]:
+    """The values a campaign's pipeline starts from, each with the key its dependants hash.
+
+    ``bd`` is the model the stages use (calibrated where the run calibrates), ``nominal`` the uncalibrated one
+    the calibration starts from (default: ``bd``).
+    """
+    model = Source(bd, models.model_key(bd))
     src = {"campaign": Source(campaign, hash_inputs("campaign", str(campaign.root),
                                                    (campaign.root / "campaign.toml").read_bytes())),
-           "fe_model": Source(bd, models.model_key(bd)),
+           "fe_model": model, "fe_nominal": model if nominal is None else nominal,
            "@store": Source(store, "store"),
            "@dask": Source(dataset.DaskSettings(opts.dask_workers, opts.scheduler), "dask")}
     for t in campaign.tests:
@@ -161,6 +183,11 @@ def _ema_nodes(p: Pipeline, campaign) -> None:
                    label=f"EMA {name}", version=5 if t.type == "assembly" else 2))
     blades = {test_name(t): f"ema/{test_name(t)}" for t in campaign.of_type("blade")}
     p.add(Node("blade_table", measured.blade_table, blades, where="parent"))
+    # the paper's calibration (§5): a worker node, since it solves the model's first modes
+    cal = {"bd": "fe_nominal", "campaign": "campaign", "blades": "blade_table"}
+    if campaign.of_type("disk"):
+        cal["disk"] = "ema/disk"
+    p.add(Node("calibration", calibration.calibrate, cal, priority=96, label="material calibrated"))
 
 
 def _model_nodes(p: Pipeline) -> None:

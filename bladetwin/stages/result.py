@@ -73,6 +73,8 @@ class RunResult:
     #: (:class:`identify.rom_update.StiffnessFit` or None), ``"answer"`` and, with reference patterns,
     #: ``"reference"`` (:class:`identify.rom_update.UpdatedROM` with the run's answer or the true patterns).
     rom_update: dict = field(default_factory=dict)
+    #: The paper's material calibration (:class:`bladetwin.stages.calibration.CalibrationResult`), None when off.
+    calibration: object = None
 
     @property
     def joints(self) -> np.ndarray:
@@ -175,7 +177,8 @@ def gather(res, campaign, opts: RunOptions, bd, timings: dict[str, float]) -> Ru
                      final, res["baseline"], res["reference"], res["d1b_rows"], fulls,
                      res["validation"], _notes(res, campaign, opts, fits), timings, posterior=post,
                      answers=_answers(res, opts),
-                     rom_update={k.split("/", 1)[1]: res[k] for k in res if k.startswith("rom_update/")})
+                     rom_update={k.split("/", 1)[1]: res[k] for k in res if k.startswith("rom_update/")},
+                     calibration=res["calibration"] if "calibration" in res else None)
 
 
 def _answers(res, opts: RunOptions) -> dict:

@@ -14,7 +14,8 @@ import pytest
 import ema
 from bladetwin.cli import main
 
-SMALL = ["--level", "coarse", "--blades", "6", "--grid", "3x7"]
+#: The ideal twin: these tests isolate the rig and the EMA (tests/lab/test_specimen.py has the realistic one).
+SMALL = ["--level", "coarse", "--blades", "6", "--grid", "3x7", "--realism", "ideal"]
 
 
 @pytest.fixture(scope="module")

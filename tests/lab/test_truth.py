@@ -10,7 +10,9 @@ from rom.contact import ContactPattern
 from rom.fe_assembly import assemble_fe, solve_fe
 from rom.solver import solve_modes
 
-NOMINAL = TruthParams(thickness_spread=0, chord_spread=0, span_spread=0, modulus_spread=0, fillet_fraction=0)
+#: The ideal twin (the model's own parts) without blade variation: these tests isolate the contact springs.
+NOMINAL = dataclasses.replace(TruthParams.ideal(), thickness_spread=0, chord_spread=0, span_spread=0,
+                              modulus_spread=0, fillet_fraction=0)
 
 
 @pytest.fixture(scope="module")
@@ -35,7 +37,7 @@ def test_stiff_springs_converge_to_the_tied_fe_assembly_from_below(coarse_bd, pa
 def test_nominal_blades_are_the_rom_blade_and_varied_roots_conform(coarse_bd, patterns):
     twin = make_truth_twin(coarse_bd, patterns, np.random.default_rng(0), NOMINAL)
     assert (twin.blades[0].K != coarse_bd.blade.K).nnz == 0
-    varied = make_truth_twin(coarse_bd, patterns, np.random.default_rng(0))
+    varied = make_truth_twin(coarse_bd, patterns, np.random.default_rng(0), TruthParams.ideal())
     for s, blade in enumerate(varied.blades, start=1):
         for f in ("L", "R"):
             grid = blade.node_set(f)
@@ -45,7 +47,7 @@ def test_nominal_blades_are_the_rom_blade_and_varied_roots_conform(coarse_bd, pa
 
 def test_blade_variation_looks_like_paper_table2(coarse_bd, patterns):
     """Deltas of tenths of a percent to ~2 %, and one mode family where the fillet blades stand apart."""
-    twin = make_truth_twin(coarse_bd, patterns, np.random.default_rng(11))
+    twin = make_truth_twin(coarse_bd, patterns, np.random.default_rng(11), TruthParams.ideal())
     f = np.array([solve_modes(b.K, b.M, 6).frequencies_hz for b in twin.blades])
     lam = f**2
     delta = 100 * (lam - lam.mean(0)) / lam.mean(0)
@@ -59,10 +61,10 @@ def test_blade_variation_looks_like_paper_table2(coarse_bd, patterns):
 
 
 def test_same_seed_same_twin(coarse_bd, patterns):
-    a = make_truth_twin(coarse_bd, patterns, np.random.default_rng(5))
-    b = make_truth_twin(coarse_bd, patterns, np.random.default_rng(5))
+    a = make_truth_twin(coarse_bd, patterns, np.random.default_rng(5), TruthParams.ideal())
+    b = make_truth_twin(coarse_bd, patterns, np.random.default_rng(5), TruthParams.ideal())
     assert a.variations == b.variations
-    c = make_truth_twin(coarse_bd, patterns, np.random.default_rng(6))
+    c = make_truth_twin(coarse_bd, patterns, np.random.default_rng(6), TruthParams.ideal())
     assert a.variations != c.variations
 
 
@@ -75,7 +77,7 @@ def test_bad_truth_inputs(coarse_bd, patterns):
 
 def test_canonical_degenerate_removes_the_solver_basis_of_a_double_mode():
     """A double mode in two different bases (as two solver runs may return it) becomes the same modes."""
-    from lab.truth import canonical_degenerate
+    from lab.rig import canonical_degenerate
     from rom.fe_assembly import AssemblyModes
 
     rng = np.random.default_rng(4)
@@ -101,7 +103,7 @@ def test_parallel_truth_solves_equal_one_by_one(coarse_bd, patterns):
     """The campaign's forked d1b solves give exactly what the same solves give one after the other."""
     from lab.campaign import _solve_parallel
 
-    twin = make_truth_twin(coarse_bd, patterns, np.random.default_rng(5))
+    twin = make_truth_twin(coarse_bd, patterns, np.random.default_rng(5), TruthParams.ideal())
     jobs = [([s], True, 8) for s in (1, 2, 3)]
     seq = _solve_parallel(twin, jobs, workers=1)
     par = _solve_parallel(twin, jobs, workers=2)

@@ -15,7 +15,9 @@ import tomli_w
 import ema
 from bladetwin.cli import main
 
-SMALL = ["--level", "coarse", "--blades", "4", "--grid", "3x7", "--known", "1,3", "--seed", "5"]
+#: The ideal twin: these tests check the pipeline's behaviour, not its accuracy on a realistic specimen.
+SMALL = ["--level", "coarse", "--blades", "4", "--grid", "3x7", "--known", "1,3", "--seed", "5",
+         "--realism", "ideal"]
 
 
 @pytest.fixture(scope="module")

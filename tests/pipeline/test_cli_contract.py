@@ -16,6 +16,8 @@ from ema import FRFSet, write_frfs
 from tests.ema.synth import modal_frfs
 
 MODEL = ["--level", "coarse", "--grid", "3x7"]
+#: The ideal twin for the simulated campaign: these tests check the commands' output, not accuracy.
+IDEAL = ["--realism", "ideal"]
 ROM = [*MODEL, "--n-cb", "30", "--n-free", "15"]
 
 
@@ -67,7 +69,8 @@ def test_every_json_output_is_one_document(uff_dir, tmp_path, capsys, monkeypatc
         ("ema", "joints"): ["ema", "joints", str(uff_dir), "--out", str(tmp_path / "j"), *ema_opts],
         ("ema", "disk"): ["ema", "disk", str(uff_dir / "one"), "--out", str(tmp_path / "d"), *ema_opts],
         ("ema", "assembly"): ["ema", "assembly", str(uff_dir / "one"), "--out", str(tmp_path / "a"), *ema_opts],
-        ("lab", "simulate"): ["lab", "simulate", *MODEL, "--blades", "4", "--out", str(tmp_path / "lab"), "--json"],
+        ("lab", "simulate"): ["lab", "simulate", *MODEL, *IDEAL, "--blades", "4", "--out", str(tmp_path / "lab"),
+                              "--json"],
     }
     # The identification stages run on the campaign just simulated (4 blades, joints 2 and 3 filmed), each
     # reading the previous stage's file from the same output folder.

@@ -13,7 +13,8 @@ import pytest
 
 from bladetwin.cli import main
 
-SMALL = ["--level", "coarse", "--blades", "4", "--grid", "3x7", "--known", "1,3"]
+#: The ideal twin: these tests check the pipeline's behaviour, not its accuracy on a realistic specimen.
+SMALL = ["--level", "coarse", "--blades", "4", "--grid", "3x7", "--known", "1,3", "--realism", "ideal"]
 # --rom paper: the ROM update is tested in test_run.py; here it would only add time.
 SETTINGS = ["--refine", "6", "--n", "5", "--rom", "paper", "--method", "knn"]
 

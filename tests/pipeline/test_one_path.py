@@ -17,7 +17,8 @@ from bladetwin.campaign import read_campaign
 from bladetwin.cli import main
 from rom.pattern_io import load_patterns
 
-SMALL = ["--level", "coarse", "--blades", "4", "--grid", "3x7", "--known", "1,3"]
+#: The ideal twin: these tests check the pipeline's behaviour, not its accuracy on a realistic specimen.
+SMALL = ["--level", "coarse", "--blades", "4", "--grid", "3x7", "--known", "1,3", "--realism", "ideal"]
 #: The settings every command below shares (the stage commands' defaults are the run's; these only shorten it).
 # --rom paper: the ROM update is tested in test_run.py; here it would only add time.
 SETTINGS = ["--refine", "8", "--n", "6", "--rom", "paper", "--method", "knn"]

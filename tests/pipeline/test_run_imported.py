@@ -25,7 +25,8 @@ from rom.importers.export import export_bladed_disk
 from rom.importers.model import ImportedBladedDisk
 from rom.pattern_io import load_patterns
 
-SMALL = ["--level", "coarse", "--blades", "6", "--grid", "3x7", "--known", "3,4"]
+#: The ideal twin: these tests check the pipeline's behaviour, not its accuracy on a realistic specimen.
+SMALL = ["--level", "coarse", "--blades", "6", "--grid", "3x7", "--known", "3,4", "--realism", "ideal"]
 _FILE_KEYS = ("K", "M", "file", "archive", "dofmap", "coords", "node_sets")
 
 

@@ -1,0 +1,499 @@
+"""Virtual hammer test in the time domain: impacts, modal responses, an analyser's windows, H1 and coherence.
+
+:func:`lab.rig.measure` writes noise straight onto exact FRFs. :func:`hammer_test` measures them as a lab
+does (docs/twin.md, "The hammer test"), for each reference DOF (roving hammer) and each average:
+
+1. **Impact.** A half-sine force pulse of contact time T_c, its peak scattered around the nominal one, and
+   now and then a double hit (a smaller second pulse a little later): :func:`draw_impacts`,
+   :func:`impact_force`.
+2. **Structure.** Modal superposition: each elastic mode's velocity under the force, computed *exactly*
+   for the piecewise-linear force through the samples of a simulation grid finer than the analyser's (an
+   exact first-order-hold discretisation of the mode's ODE, run with :func:`scipy.signal.lfilter`); each
+   rigid-body mode integrates the force (the velocity step of a free–free structure on soft foam).
+3. **Analyser.** Record length T = 1/df and fs = N/T ≥ 2.56 f_max, so the FFT bins fall on the setup's
+   lines. An ideal anti-aliasing filter precedes each converter: the analyser sees the continuous Fourier
+   transform of each windowed channel at the lines. The response is smooth, so the DFT of its fine-grid
+   samples gives that transform (its aliases weigh about (f/fs_sim)²: ~1e-4 relative at the default grid,
+   falling as 1/factor²); the force is piecewise linear, so its transform is exactly the DFT of its
+   samples times sinc²(f/fs_sim), the transform of the linear-interpolation kernel. Converter noise is
+   Gaussian, white, at the analyser's rate: drawn there, windowed and transformed there; by linearity its
+   spectrum adds to the signal's, and the modes' spectra are mixed into the laser's outputs after the FFT.
+4. **Windows.** A rectangular force window over the pulse, and an exponential window w(t) = exp(-t/τ) on
+   both channels (on the force it is ≈ 1 over the pulse; on both, the measured FRF is exactly that of the
+   structure with its poles moved by -1/τ). That adds the damping Δζ_r = 1/(τ ω_r) to mode r
+   (:attr:`HammerResult.window_damping`), as in a lab; subtract it before comparing damping with a truth.
+5. **Estimate.** Auto and cross spectra summed over the averages: H1 = Gxy/Gxx and γ² = |Gxy|²/(Gxx Gyy).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import fft, signal
+
+from ema.frf import FRFSet
+from ema.numbering import dof_label
+from rom.fe_assembly import AssemblyModes
+
+from .rig import RigSetup
+
+__all__ = ["HammerSettings", "HammerResult", "AnalyserGrid", "Impacts", "analyser_grid", "draw_impacts",
+           "impact_force", "hammer_test", "windowed_mobility"]
+
+#: The force pulse gets at least this many samples of the simulation grid (the grid is refined for it).
+MIN_SAMPLES_PER_CONTACT = 8
+#: Outputs whose noise is drawn and transformed together (bounds the memory of the noise records).
+OUTPUT_CHUNK = 64
+
+
+@dataclass(frozen=True)
+class HammerSettings:
+    """How the hammer test is done. SI units.
+
+    Attributes
+    ----------
+    contact_time_s : float
+        Duration T_c of the half-sine force pulse. A steel tip on steel gives about 0.1–0.3 ms (Ewins, *Modal
+        Testing*, 2000; Avitabile, *Modal Testing: A Practitioner's Guide*, 2017). A half-sine's
+        spectrum is |F(f)| ∝ |cos(π f T_c)| / |1 - (2 f T_c)²|, first zero at 1.5/T_c; the usual rule is to
+        use it only where it has fallen by less than 10–20 dB. The default 0.2 ms falls by 2.1 dB at 2.5 kHz
+        and 9.5 dB at 5 kHz (f T_c = 1), so it serves every band up to 5 kHz.
+    peak_force_n : float
+        Nominal peak force (N); a modal hammer on a small blade gives tens to hundreds of newtons.
+    amplitude_scatter : float
+        Each hit's peak is the nominal one times a factor uniform in [1 - s, 1 + s] (hand-held: ±10 %).
+    double_hit_share : float
+        Probability that a hit bounces back for a second one (about 1 in 10 on light, lively structures).
+    double_hit_delay_s : (float, float)
+        Range (uniform) of the second pulse's start after the first's; at least the contact time.
+    double_hit_amplitude : (float, float)
+        Range (uniform) of the second pulse's peak relative to the first.
+    force_noise : float
+        Force-channel noise: Gaussian, white at the analyser's rate, standard deviation this fraction of the
+        nominal peak force (the channel's range is set to the peak).
+    response_noise : float
+        Response-channel (laser) noise: Gaussian, white at the analyser's rate, standard deviation this
+        fraction of the channel's RMS over the record, taken on the first hit of each reference (as an
+        analyser's range is set on a trial hit).
+    n_averages : int
+        Hits averaged per reference (about 5 is common practice for impact tests; Avitabile 2017).
+    force_window : float or None
+        Length of the rectangular force window, as a multiple of ``contact_time_s`` from the trigger (the
+        pulse's start): it keeps the pulse and drops the noise after it (Brandt, *Noise and Vibration
+        Analysis*, 2011). A second hit outside it spoils the FRF, as in a lab. None: no force window.
+    exp_window_end : float or None
+        The exponential window w(t) = exp(-t/τ) falls to this value at the end of the record: 1 % is standard
+        practice (Brandt 2011; Avitabile 2017). It makes lightly damped responses decay within
+        the record (no leakage) and adds the damping Δζ_r = 1/(τ ω_r). None: no exponential window.
+    oversampling : float
+        fs / f_max. Analysers sample at 2.56 f_max (Brandt 2011): f_max at 78 % of Nyquist leaves room for
+        the anti-aliasing filter's transition band.
+    simulation_factor : int
+        The structure's responses are computed on a grid at least this many times finer than the analyser's
+        (refined further so that the pulse spans at least 8 samples): it keeps the response's aliases small.
+
+    Notes
+    -----
+    The band and the line spacing (hence the record length T = 1/df) come from :class:`lab.rig.RigSetup`.
+    """
+
+    contact_time_s: float = 2.0e-4
+    peak_force_n: float = 100.0
+    amplitude_scatter: float = 0.1
+    double_hit_share: float = 0.1
+    double_hit_delay_s: tuple[float, float] = (0.5e-3, 2.0e-3)
+    double_hit_amplitude: tuple[float, float] = (0.1, 0.5)
+    force_noise: float = 1.0e-3
+    response_noise: float = 5.0e-3
+    n_averages: int = 5
+    force_window: float | None = 4.0
+    exp_window_end: float | None = 0.01
+    oversampling: float = 2.56
+    simulation_factor: int = 8
+
+    def validate(self) -> None:
+        """Raise ValueError, with a one-line message naming the field and what was expected, on a bad setting."""
+
+        def need(ok: bool, name: str, expected: str) -> None:
+            if not ok:
+                raise ValueError(f"HammerSettings.{name} = {getattr(self, name)!r}: expected {expected}")
+
+        def real(x: object) -> bool:
+            return isinstance(x, (int, float, np.integer, np.floating)) and not isinstance(x, bool) \
+                and math.isfinite(x)
+
+        def pair(x: object) -> bool:
+            return isinstance(x, (tuple, list)) and len(x) == 2 and all(real(v) for v in x) and x[0] <= x[1]
+
+        need(real(self.contact_time_s) and self.contact_time_s > 0, "contact_time_s", "a positive duration (s)")
+        need(real(self.peak_force_n) and self.peak_force_n > 0, "peak_force_n", "a positive force (N)")
+        need(real(self.amplitude_scatter) and 0 <= self.amplitude_scatter < 1, "amplitude_scatter",
+             "a fraction in [0, 1)")
+        need(real(self.double_hit_share) and 0 <= self.double_hit_share <= 1, "double_hit_share",
+             "a probability in [0, 1]")
+        need(pair(self.double_hit_delay_s) and self.double_hit_delay_s[0] >= self.contact_time_s,
+             "double_hit_delay_s", "(min, max) in s with contact_time_s <= min <= max (pulses may not overlap)")
+        need(pair(self.double_hit_amplitude) and 0 < self.double_hit_amplitude[0] and self.double_hit_amplitude[1]
+             <= 1, "double_hit_amplitude", "(min, max) with 0 < min <= max <= 1")
+        need(real(self.force_noise) and self.force_noise >= 0, "force_noise", "a fraction >= 0")
+        need(real(self.response_noise) and self.response_noise >= 0, "response_noise", "a fraction >= 0")
+        need(isinstance(self.n_averages, (int, np.integer)) and not isinstance(self.n_averages, bool)
+             and self.n_averages >= 1, "n_averages", "an integer >= 1")
+        need(self.force_window is None or (real(self.force_window) and self.force_window >= 1), "force_window",
+             "None or a multiple >= 1 of contact_time_s (the window must hold the pulse)")
+        need(self.exp_window_end is None or (real(self.exp_window_end) and 0 < self.exp_window_end < 1),
+             "exp_window_end", "None or a fraction in (0, 1)")
+        need(real(self.oversampling) and self.oversampling >= 2, "oversampling",
+             "fs / f_max >= 2 (Nyquist; analysers use 2.56)")
+        need(isinstance(self.simulation_factor, (int, np.integer)) and not isinstance(self.simulation_factor, bool)
+             and self.simulation_factor >= 4, "simulation_factor", "an integer >= 4")
+
+
+@dataclass(frozen=True)
+class AnalyserGrid:
+    """Sampling of one record: the analyser's grid and the finer grid the structure is simulated on.
+
+    Attributes
+    ----------
+    n_samples : int
+        Analyser samples per record, N (fs = N df ≥ oversampling × f_max).
+    factor : int
+        Simulation samples per analyser sample.
+    first_line : int
+        FFT bin of the band's first line (its frequency over df).
+    n_lines : int
+        Lines in the band.
+    df_hz : float
+    """
+
+    n_samples: int
+    factor: int
+    first_line: int
+    n_lines: int
+    df_hz: float
+
+    @property
+    def dt(self) -> float:
+        """Analyser sampling interval (s)."""
+        return 1.0 / (self.n_samples * self.df_hz)
+
+    @property
+    def dt_sim(self) -> float:
+        """Simulation sampling interval (s)."""
+        return self.dt / self.factor
+
+    @property
+    def lines(self) -> slice:
+        """The band's bins in an rfft of the record."""
+        return slice(self.first_line, self.first_line + self.n_lines)
+
+
+def analyser_grid(setup: RigSetup, settings: HammerSettings) -> AnalyserGrid:
+    """The sampling that puts the FFT bins on ``setup.frequencies()``.
+
+    Raises
+    ------
+    ValueError
+        The band's first line is not a multiple of df (no FFT bin falls on it).
+    """
+    freq = setup.frequencies()
+    df = float(setup.df_hz)
+    k0 = int(round(freq[0] / df))
+    if abs(k0 * df - freq[0]) > 1e-9 * max(df, freq[0]):
+        raise ValueError(f"RigSetup.band_hz starts at {freq[0]} Hz: expected a multiple of df_hz = {df} Hz "
+                         "(the FFT's lines are k df)")
+    k_last = k0 + freq.size - 1
+    n = fft.next_fast_len(math.ceil(settings.oversampling * k_last - 1e-9), real=True)
+    # The pulse needs MIN_SAMPLES_PER_CONTACT samples; next_fast_len keeps the long FFT fast.
+    need = math.ceil(MIN_SAMPLES_PER_CONTACT / (settings.contact_time_s * n * df) - 1e-9)
+    factor = fft.next_fast_len(max(int(settings.simulation_factor), need), real=True)
+    return AnalyserGrid(n_samples=int(n), factor=int(factor), first_line=k0, n_lines=int(freq.size), df_hz=df)
+
+
+@dataclass(frozen=True)
+class Impacts:
+    """Random draws of a series of hits (one per average).
+
+    Attributes
+    ----------
+    amplitude_n : ndarray, shape (n_hits,)
+        Peak force of the first pulse (N).
+    double : ndarray of bool, shape (n_hits,)
+        Whether a second pulse follows.
+    delay_s : ndarray, shape (n_hits,)
+        Start of the second pulse after the first's (drawn for every hit; used where ``double``).
+    ratio : ndarray, shape (n_hits,)
+        Second pulse's peak over the first's (0 where not ``double``).
+    """
+
+    amplitude_n: np.ndarray
+    double: np.ndarray
+    delay_s: np.ndarray
+    ratio: np.ndarray
+
+
+def draw_impacts(settings: HammerSettings, rng: np.random.Generator, n_hits: int) -> Impacts:
+    """Draw the amplitude and any double hit of ``n_hits`` hits (uniform scatter, Bernoulli double hits)."""
+    s = settings
+    amplitude = s.peak_force_n * (1.0 + s.amplitude_scatter * rng.uniform(-1.0, 1.0, n_hits))
+    double = rng.random(n_hits) < s.double_hit_share
+    delay = rng.uniform(*s.double_hit_delay_s, n_hits)
+    ratio = np.where(double, rng.uniform(*s.double_hit_amplitude, n_hits), 0.0)
+    return Impacts(amplitude, double, delay, ratio)
+
+
+def impact_force(t: np.ndarray, contact_time_s: float, impacts: Impacts) -> np.ndarray:
+    """Samples of the force of each hit (N): half-sine pulses starting at t = 0 (and at ``delay_s``).
+
+    Parameters
+    ----------
+    t : ndarray, shape (n_t,)
+        Sampling instants (s) from the trigger.
+    contact_time_s : float
+    impacts : Impacts
+        ``n_hits`` hits.
+
+    Returns
+    -------
+    ndarray, shape (n_hits, n_t)
+    """
+
+    def half_sine(x: np.ndarray) -> np.ndarray:
+        inside = (x >= 0) & (x <= contact_time_s)
+        return np.where(inside, np.sin(np.pi * np.clip(x / contact_time_s, 0.0, 1.0)), 0.0)
+
+    second = half_sine(t[None, :] - impacts.delay_s[:, None]) * impacts.ratio[:, None]
+    return impacts.amplitude_n[:, None] * (half_sine(t)[None, :] + second)
+
+
+@dataclass(frozen=True, eq=False)
+class HammerResult:
+    """A virtual hammer test's estimates.
+
+    Attributes
+    ----------
+    frf : FRFSet
+        H1 mobility (m/s/N) on ``setup.frequencies()``, labels as :func:`lab.rig.measure`'s.
+    coherence : ndarray, shape (n_outputs, n_inputs, n_freq)
+        Ordinary coherence γ² in [0, 1] (1 for a single average; 0 where a channel carries nothing).
+    window_damping : ndarray, shape (n_modes,)
+        Damping ratio Δζ_r = 1/(τ ω_r) the exponential window adds to each elastic mode (0 without it).
+        To first order, away from the rigid-body mass line, the measured FRF is
+        ``synthesize_mobility(modes, zeta + window_damping, ...)``; exactly, :func:`windowed_mobility`.
+    window_time_constant_s : float
+        τ of the exponential window (inf without it).
+    force_autospectrum : ndarray, shape (n_inputs, n_freq)
+        Gxx: mean |F|² over the averages of the windowed force's Fourier transform ((N s)²).
+    double_hits : ndarray of bool, shape (n_inputs, n_averages)
+        Which hits were double.
+    """
+
+    frf: FRFSet
+    coherence: np.ndarray
+    window_damping: np.ndarray
+    window_time_constant_s: float
+    force_autospectrum: np.ndarray
+    double_hits: np.ndarray
+
+
+def windowed_mobility(
+    modes: AssemblyModes, zeta: np.ndarray, freq_hz: np.ndarray, outputs: Sequence[int], inputs: Sequence[int],
+    tau_s: float,
+) -> np.ndarray:
+    """The mobility (m/s/N) a test with the exponential window exp(-t/τ) on both channels measures, exactly.
+
+    The window multiplies every impulse response by exp(-t/τ), so the measured FRF is the structure's
+    mobility at s = iω + 1/τ: each pole moves by -1/τ (the damping Δζ_r = 1/(τ ω_r) of
+    :attr:`HammerResult.window_damping`, to first order) and the rigid-body mass line 1/(iω) becomes
+    1/(iω + 1/τ). Same arguments and shape as :func:`lab.rig.synthesize_mobility`; ``tau_s = inf`` gives it.
+    """
+    s = 2j * np.pi * np.asarray(freq_hz, np.float64) + 1.0 / tau_s
+    wn = 2.0 * np.pi * np.asarray(modes.frequencies_hz, np.float64)
+    den = wn[:, None] ** 2 + 2.0 * np.asarray(zeta)[:, None] * wn[:, None] * s[None] + s[None] ** 2
+    out, inp = np.asarray(outputs), np.asarray(inputs)
+    H = np.einsum("or,ir,rf->oif", modes.meas_shapes[out], modes.meas_shapes[inp], s[None] / den)
+    if modes.rigid_shapes is not None:
+        rigid = modes.rigid_shapes[out] @ modes.rigid_shapes[inp].T
+        H += rigid[:, :, None] / s[None, None]
+    return H
+
+
+def _modal_filters(freq_hz: np.ndarray, zeta: np.ndarray, dt: float) -> list[tuple[np.ndarray, np.ndarray]]:
+    """lfilter coefficients (b, a) of each elastic mode, from unit modal force to modal velocity.
+
+    Exact for a force that is linear between samples: the first-order-hold (triangle-hold) equivalent.
+    """
+    out = []
+    for f, z in zip(freq_hz, zeta, strict=True):
+        w = 2.0 * np.pi * float(f)
+        A = np.array([[0.0, 1.0], [-w * w, -2.0 * float(z) * w]])
+        B, Cv, D = np.array([[0.0], [1.0]]), np.array([[0.0, 1.0]]), np.zeros((1, 1))
+        sysd = signal.cont2discrete((A, B, Cv, D), dt, method="foh")
+        b, a = signal.ss2tf(*sysd[:4])
+        out.append((np.asarray(b[0], np.float64), np.asarray(a, np.float64)))
+    return out
+
+
+def _modal_spectra(
+    filters: list, rigid: bool, force: np.ndarray, window: np.ndarray, grid: AnalyserGrid
+) -> tuple[np.ndarray, np.ndarray]:
+    """Windowed spectra of each modal velocity under the force, and their Gram matrix on the first hit.
+
+    Column c < len(filters) is elastic mode c; with ``rigid`` the last column is the rigid-body velocity
+    (the integral of the force: exact, as the force is linear between samples).
+
+    Returns
+    -------
+    spectra : ndarray, shape (n_cols, n_hits, n_lines)
+        Fourier transforms (m/s·s per unit modal participation) of the windowed modal velocities.
+    gram : ndarray, shape (n_cols, n_cols)
+        Mean over the record of products of the modal velocities of the first hit, at the analyser's
+        instants: the channels' mean squares are quadratic forms of it.
+    """
+    n_cols = len(filters) + int(rigid)
+    spectra = np.empty((n_cols, force.shape[0], grid.n_lines), np.complex128)
+    first = np.empty((n_cols, grid.n_samples))
+    for c in range(n_cols):
+        if c < len(filters):
+            g = signal.lfilter(*filters[c], force, axis=-1)
+        else:
+            g = grid.dt_sim * (np.cumsum(force, axis=-1) - 0.5 * (force[:, :1] + force))
+        first[c] = g[0, :: grid.factor]
+        spectra[c] = fft.rfft(g * window, axis=-1)[:, grid.lines] * grid.dt_sim
+    return spectra, first @ first.T / grid.n_samples
+
+
+def _noise_spectra(rng: np.random.Generator, sigma: np.ndarray, n_hits: int, window: np.ndarray,
+                   grid: AnalyserGrid) -> np.ndarray:
+    """Transforms of windowed white Gaussian converter noise, shape (n_channels, n_hits, n_lines)."""
+    out = np.zeros((sigma.size, n_hits, grid.n_lines), np.complex128)
+    if not np.any(sigma > 0):
+        return out
+    for h in range(n_hits):
+        e = rng.standard_normal((sigma.size, grid.n_samples)) * sigma[:, None]
+        out[:, h] = fft.rfft(e * window, axis=-1)[:, grid.lines] * grid.dt
+    return out
+
+
+def _windows(grid: AnalyserGrid, settings: HammerSettings) -> tuple[float, dict[str, np.ndarray]]:
+    """τ of the exponential window and the windows on both grids: response ("resp_*") and force ("force_*")."""
+    record = 1.0 / grid.df_hz
+    tau = math.inf if settings.exp_window_end is None else record / math.log(1.0 / settings.exp_window_end)
+    out = {"t_sim": np.arange(grid.n_samples * grid.factor) * grid.dt_sim}
+    for name, n, dt in (("sim", grid.n_samples * grid.factor, grid.dt_sim), ("an", grid.n_samples, grid.dt)):
+        t = np.arange(n) * dt
+        w = np.exp(-t / tau)
+        out[f"resp_{name}"] = w
+        if settings.force_window is not None:
+            # a half-sample margin: a pulse ending on a sample stays inside
+            w = w * (t <= settings.force_window * settings.contact_time_s + 0.5 * dt)
+        out[f"force_{name}"] = w
+    return tau, out
+
+
+def _check_inputs(modes: AssemblyModes, zeta: np.ndarray, inputs: list, outputs: list) -> None:
+    n_meas, n_modes = modes.meas_shapes.shape
+    if zeta.shape != (n_modes,) or not np.all(np.isfinite(zeta)) or np.any(zeta < 0):
+        raise ValueError(f"zeta has shape {zeta.shape}: expected ({n_modes},) finite damping ratios >= 0")
+    if not inputs:
+        raise ValueError("inputs is empty: expected at least one hammer DOF")
+    for name, rows in (("inputs", inputs), ("outputs", outputs)):
+        bad = [k for k in rows if not 0 <= k < n_meas]
+        if bad:
+            raise ValueError(f"{name} {bad[:3]}: expected rows of modes.meas_shapes (0..{n_meas - 1})")
+
+
+def hammer_test(
+    modes: AssemblyModes,
+    zeta: np.ndarray,
+    setup: RigSetup,
+    rng: np.random.Generator,
+    inputs: Sequence[int],
+    outputs: Sequence[int] | None = None,
+    settings: HammerSettings = HammerSettings(),  # noqa: B008  (frozen: a shared default is safe)
+) -> HammerResult:
+    """A virtual roving-hammer test in the time domain: H1 mobility and coherence (see the module's notes).
+
+    Parameters
+    ----------
+    modes : AssemblyModes
+        Modes of the tested structure (elastic, and rigid-body in ``rigid_shapes`` for a free–free one),
+        computed to well above ``setup.band_hz``.
+    zeta : ndarray, shape (n_modes,)
+        Modal damping ratio of each elastic mode.
+    setup : RigSetup
+        Band and df (record length 1/df); its noise fields are not used (``settings`` has the channels').
+    rng : numpy.random.Generator
+        Every draw comes from it, in a fixed order: the same generator state gives the same test.
+    inputs : sequence of int
+        Hammer DOFs (rows of ``modes.meas_shapes``), hit one after the other.
+    outputs : sequence of int, optional
+        Laser DOFs (default: every measurement DOF).
+    settings : HammerSettings
+
+    Returns
+    -------
+    HammerResult
+
+    Raises
+    ------
+    ValueError
+        A bad setting (see :meth:`HammerSettings.validate`), a band not on multiples of df, damping of the
+        wrong shape, or DOF rows out of range.
+    """
+    settings.validate()
+    zeta = np.asarray(zeta, np.float64).reshape(-1)
+    inputs = [int(k) for k in inputs]
+    outputs = list(range(modes.meas_shapes.shape[0])) if outputs is None else [int(k) for k in outputs]
+    _check_inputs(modes, zeta, inputs, outputs)
+    grid = analyser_grid(setup, settings)
+    tau, win = _windows(grid, settings)
+    filters = _modal_filters(modes.frequencies_hz, zeta, grid.dt_sim)
+    rigid = modes.rigid_shapes is not None and modes.rigid_shapes.shape[1] > 0
+    phi = np.asarray(modes.meas_shapes, np.float64)
+    n_out, n_in, n_avg = len(outputs), len(inputs), int(settings.n_averages)
+    k = np.arange(grid.first_line, grid.first_line + grid.n_lines)
+    hold = np.sinc(k / (grid.n_samples * grid.factor)) ** 2  # transform of the linear-interpolation kernel
+    Gxy = np.zeros((n_out, n_in, grid.n_lines), np.complex128)
+    Gyy = np.zeros((n_out, n_in, grid.n_lines))
+    Gxx = np.zeros((n_in, grid.n_lines))
+    doubles = np.zeros((n_in, n_avg), bool)
+    for j, i in enumerate(inputs):
+        hits = draw_impacts(settings, rng, n_avg)
+        doubles[j] = hits.double
+        force = impact_force(win["t_sim"], settings.contact_time_s, hits)
+        F = fft.rfft(force * win["force_sim"], axis=-1)[:, grid.lines] * (grid.dt_sim * hold)
+        F += _noise_spectra(rng, np.full(1, settings.force_noise * settings.peak_force_n), n_avg,
+                            win["force_an"], grid)[0]
+        Gxx[j] = np.sum(np.abs(F) ** 2, axis=0)
+        spectra, gram = _modal_spectra(filters, rigid, force, win["resp_sim"], grid)
+        # modal participation of each column at each output for this hammer DOF
+        C = phi[outputs] * phi[i][None, :]
+        if rigid:
+            C = np.hstack([C, modes.rigid_shapes[outputs] @ modes.rigid_shapes[i][:, None]])
+        for lo in range(0, n_out, OUTPUT_CHUNK):
+            c = C[lo : lo + OUTPUT_CHUNK]
+            Y = np.tensordot(c.astype(np.complex128), spectra, axes=(1, 0))  # (chunk, n_avg, n_lines)
+            rms = np.sqrt(np.maximum(np.einsum("oc,cd,od->o", c, gram, c), 0.0))
+            Y += _noise_spectra(rng, settings.response_noise * rms, n_avg, win["resp_an"], grid)
+            Gxy[lo : lo + OUTPUT_CHUNK, j] = np.einsum("af,oaf->of", np.conj(F), Y)
+            Gyy[lo : lo + OUTPUT_CHUNK, j] = np.sum(np.abs(Y) ** 2, axis=1)
+    return _result(modes, setup, outputs, inputs, (Gxx, Gyy, Gxy), tau, doubles, n_avg)
+
+
+def _result(modes: AssemblyModes, setup: RigSetup, outputs: list, inputs: list, spectra: tuple, tau: float,
+            doubles: np.ndarray, n_avg: int) -> HammerResult:
+    """H1 and coherence from the summed spectra, packed with the labels and the window's damping."""
+    Gxx, Gyy, Gxy = spectra
+    H = Gxy / Gxx[None]
+    den = Gxx[None] * Gyy
+    coh = np.divide(np.abs(Gxy) ** 2, den, out=np.zeros_like(Gyy), where=den > 0)
+    labels = [dof_label(modes.meas_labels[k]) for k in outputs]
+    refs = [dof_label(modes.meas_labels[k]) for k in inputs]
+    frf = FRFSet(setup.frequencies(), H, labels, refs, form="mobility", units="m/s/N")
+    w = 2.0 * np.pi * np.asarray(modes.frequencies_hz, np.float64)
+    return HammerResult(frf=frf, coherence=np.clip(coh, 0.0, 1.0), window_damping=1.0 / (tau * w),
+                        window_time_constant_s=tau, force_autospectrum=Gxx / n_avg, double_hits=doubles)
