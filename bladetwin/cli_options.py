@@ -30,9 +30,10 @@ def add_stage_options(p) -> None:
     p.add_argument("--step", type=float, default=d.step_pct, help="δ grid step in %% (default: %(default)s)")
     p.add_argument("--features", type=int, default=d.n_features, help="feature modes of the k-NN "
                    "(default: %(default)s)")
-    p.add_argument("--no-calibrate", action="store_true",
-                   help="keep the FE model's E and ρ (by default they are calibrated on the free-disk and free-blade "
-                        "tests and the manifest's [masses], paper §5)")
+    p.add_argument("--calibrate", action="store_true",
+                   help="calibrate the FE model's E and ρ on the free-disk and free-blade tests and the manifest's "
+                        "[masses] before any reduction (paper §5; off by default until the bundled campaign is "
+                        "regenerated)")
     p.add_argument("--no-bias", action="store_true", help="don't remove the ROM's bias estimated on the filmed joints")
     p.add_argument("--refine", type=int, default=d.refine, metavar="N",
                    help="refine each unfilmed joint's k-NN pattern by a compass search of at most N disk-one-blade "
@@ -75,4 +76,4 @@ def stage_options(args, *, scheduler: str | None = None) -> RunOptions:
                       bias=not args.no_bias, workers=args.workers, dask_workers=args.dask_workers,
                       scheduler=scheduler, refine=args.refine,
                       method=args.method, n_components=args.components, rom=args.rom,
-                      calibrate=not args.no_calibrate)
+                      calibrate=args.calibrate)

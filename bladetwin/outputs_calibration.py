@@ -19,7 +19,7 @@ def calibration_summary(res: RunResult) -> dict:
     """``summary.json:calibration``: per component the target, E and ρ before and after, ρ's source; the modes."""
     cal = res.calibration
     if cal is None:
-        return {"enabled": False, "disk": None, "blade": None, "notes": ["not run (--no-calibrate)"], "modes": []}
+        return {"enabled": False, "disk": None, "blade": None, "notes": ["not run (--calibrate)"], "modes": []}
     return {"enabled": True, **cal.to_dict(), "modes": cal.mode_rows()}
 
 
@@ -73,7 +73,7 @@ def calibration_section(res: RunResult, out: Path, csv_writer) -> dict | None:
         figs.append({"file": path.name, "caption": "The model's frequency error on the free components before and "
                                                     "after calibration (paper Figs. 9–13)."})
     text = ["bladetwin calibrates E and ρ of the disk and the blades before any reduction, as the paper's §5 does; "
-            "every ROM of the run is the calibrated one (`--no-calibrate` keeps the model's materials)."]
+            "every ROM of the run is the calibrated one (off unless `--calibrate`)."]
     text += [f"Note: {n}." for n in s["notes"]]
     return {"id": "calibration", "title": "Material calibration (paper §5, Table 4)", "text": text,
             "figures": figs, "tables": tables}

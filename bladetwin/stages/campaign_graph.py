@@ -88,7 +88,7 @@ class RunOptions:
     method: str = "both"
     n_components: int | None = None
     rom: str = "updated"
-    calibrate: bool = True
+    calibrate: bool = False
 
     def __post_init__(self) -> None:
         if self.method not in METHODS:

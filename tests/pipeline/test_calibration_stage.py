@@ -21,7 +21,8 @@ SMALL = {"level": "coarse", "n_blades": 4, "grid": (3, 7), "known_joints": (1, 3
 def _calibrate(tmp_path, truth: TruthParams, seed: int):
     camp = tmp_path / f"camp{seed}"
     simulate_campaign(CampaignSpec(seed=seed, truth=truth, **SMALL), camp)
-    res, _ = run_nodes(read_campaign(camp), ["calibration"], RunOptions(cache_dir=tmp_path / "cache", workers=1))
+    opts = RunOptions(cache_dir=tmp_path / "cache", workers=1, calibrate=True)
+    res, _ = run_nodes(read_campaign(camp), ["calibration"], opts)
     return res["calibration"], json.loads((camp / "truth" / "truth.json").read_text())
 
 
