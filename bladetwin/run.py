@@ -93,7 +93,7 @@ def _calibrated(c: Campaign, p: Pipeline, nominal: Source, store: Store, opts: R
 
     from .stages.models import model_key
 
-    src = campaign_sources(c, nominal.value, store, opts, nominal=nominal)
+    src = campaign_sources(c, nominal, store, opts)
     res = Runner(store, opts.workers, say).run(p, ["calibration"], src)
     cal = res["calibration"]
     if cal.disk is None and cal.blade is None:
@@ -125,7 +125,7 @@ def _graph(campaigns: list[Campaign], opts: RunOptions, store: Store, say) -> tu
         p = p.prefixed(pre.rstrip("/")) if pre else p
         for n in p:
             pipeline.add(n)
-        src = campaign_sources(c, model.value, store, opts, nominal=models[spec])
+        src = campaign_sources(c, model, store, opts, nominal=models[spec])
         sources.update({pre + k: v for k, v in src.items()})
     return pipeline, sources, prefixes
 

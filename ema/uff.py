@@ -226,6 +226,35 @@ def _field(dset: dict, key: str, path: Path, index: int) -> Any:
     return dset[key]
 
 
+def _axis_and_data(dset: dict, path: Path, index: int, what: str) -> tuple[np.ndarray, np.ndarray]:
+    """A type-58 set's frequency axis and its values, checked: a frequency abscissa and as many values as the
+    header announces (``what`` names the record in the message: "" for an FRF, "coherence ")."""
+    abscissa = int(dset.get("abscissa_spec_data_type", 0))
+    if abscissa not in (0, 18):
+        name = _ABSCISSA_TYPES.get(abscissa, "other")
+        raise UFFError(str(path), f"{what}abscissa is {name} (type {abscissa}), expected frequency (18)", index,
+                       "abscissa_spec_data_type")
+    x = np.asarray(_field(dset, "x", path, index), dtype=np.float64).reshape(-1)
+    data = np.asarray(_field(dset, "data", path, index)).reshape(-1)
+    num_pts = int(dset.get("num_pts", data.size))
+    if data.size != num_pts or x.size != num_pts:
+        raise UFFError(
+            str(path), f"{what}header announces {num_pts} points but {data.size} values and {x.size} abscissae "
+            "were read (short or damaged data set)", index, "num_pts",
+        )
+    return x, data
+
+
+def _dof_pair(dset: dict, path: Path, index: int) -> tuple[DOF, DOF]:
+    """(response, reference) (node, direction) of a type-58 set, directions checked."""
+    rsp = (int(_field(dset, "rsp_node", path, index)), int(_field(dset, "rsp_dir", path, index)))
+    ref = (int(_field(dset, "ref_node", path, index)), int(_field(dset, "ref_dir", path, index)))
+    for label, key in ((rsp, "rsp_dir"), (ref, "ref_dir")):
+        if not -6 <= label[1] <= 6:
+            raise UFFError(str(path), f"direction {label[1]} outside -6..6", index, key)
+    return rsp, ref
+
+
 def _frf_from_set(
     dset: dict, path: Path, index: int, form: str | None
 ) -> tuple[DOF, DOF, np.ndarray, np.ndarray, str, str]:
@@ -233,27 +262,13 @@ def _frf_from_set(
     if func_type != 4:
         name = FUNCTION_TYPES.get(func_type, "unknown")
         raise UFFError(str(path), f"not an FRF (function type {func_type} = {name})", index, "func_type")
-    abscissa = int(dset.get("abscissa_spec_data_type", 0))
-    if abscissa not in (0, 18):
-        name = _ABSCISSA_TYPES.get(abscissa, "other")
-        raise UFFError(
-            str(path), f"abscissa is {name} (type {abscissa}), expected frequency (18)", index,
-            "abscissa_spec_data_type",
-        )
-    x = np.asarray(_field(dset, "x", path, index), dtype=np.float64).reshape(-1)
-    data = np.asarray(_field(dset, "data", path, index)).reshape(-1)
-    num_pts = int(dset.get("num_pts", data.size))
-    if data.size != num_pts or x.size != num_pts:
-        raise UFFError(
-            str(path), f"header announces {num_pts} points but {data.size} values and {x.size} abscissae were read"
-            " (short or damaged data set)", index, "num_pts",
-        )
+    x, data = _axis_and_data(dset, path, index, "")
     if not np.iscomplexobj(data):
         raise UFFError(
             str(path), f"unsupported: real-valued FRF (ord_data_type {dset.get('ord_data_type')}), expected complex",
             index, "ord_data_type",
         )
-    if num_pts < 2 or not np.all(np.isfinite(x)) or np.any(np.diff(x) <= 0):
+    if x.size < 2 or not np.all(np.isfinite(x)) or np.any(np.diff(x) <= 0):
         raise UFFError(str(path), "frequency axis is not finite and strictly increasing", index, "x")
     if x[0] < 0:
         raise UFFError(str(path), f"frequency axis starts at {x[0]} Hz, expected >= 0", index, "x")
@@ -285,28 +300,13 @@ def _frf_from_set(
             f"cannot tell the FRF form from ordinate type {ordinate} and units {units!r}; pass form=",
             index, "ordinate_spec_data_type",
         )
-    rsp = (int(_field(dset, "rsp_node", path, index)), int(_field(dset, "rsp_dir", path, index)))
-    ref = (int(_field(dset, "ref_node", path, index)), int(_field(dset, "ref_dir", path, index)))
-    for label, key in ((rsp, "rsp_dir"), (ref, "ref_dir")):
-        if not -6 <= label[1] <= 6:
-            raise UFFError(str(path), f"direction {label[1]} outside -6..6", index, key)
+    rsp, ref = _dof_pair(dset, path, index)
     return rsp, ref, x, data.astype(np.complex128), use_form, units
 
 
 def _coherence_from_set(dset: dict, path: Path, index: int) -> tuple[DOF, DOF, np.ndarray, np.ndarray]:
     """(response, reference, axis, values) of a coherence data set (58, function type 6), checked."""
-    abscissa = int(dset.get("abscissa_spec_data_type", 0))
-    if abscissa not in (0, 18):
-        raise UFFError(str(path), f"coherence abscissa is type {abscissa}, expected frequency (18)", index,
-                       "abscissa_spec_data_type")
-    x = np.asarray(_field(dset, "x", path, index), dtype=np.float64).reshape(-1)
-    data = np.asarray(_field(dset, "data", path, index)).reshape(-1)
-    num_pts = int(dset.get("num_pts", data.size))
-    if data.size != num_pts or x.size != num_pts:
-        raise UFFError(
-            str(path), f"coherence header announces {num_pts} points but {data.size} values and {x.size} abscissae"
-            " were read (short or damaged data set)", index, "num_pts",
-        )
+    x, data = _axis_and_data(dset, path, index, "coherence ")
     if np.iscomplexobj(data):
         raise UFFError(str(path), f"coherence must be real, found complex values (ord_data_type "
                        f"{dset.get('ord_data_type')})", index, "ord_data_type")
@@ -315,8 +315,7 @@ def _coherence_from_set(dset: dict, path: Path, index: int) -> tuple[DOF, DOF, n
     if not np.all(np.isfinite(data)) or np.any(data < 0) or np.any(data > 1 + 1e-6):
         bad = data[~(np.isfinite(data) & (data >= 0) & (data <= 1 + 1e-6))][0]
         raise UFFError(str(path), f"coherence value {bad:.6g} outside [0, 1] (damaged data set)", index, "data")
-    rsp = (int(_field(dset, "rsp_node", path, index)), int(_field(dset, "rsp_dir", path, index)))
-    ref = (int(_field(dset, "ref_node", path, index)), int(_field(dset, "ref_dir", path, index)))
+    rsp, ref = _dof_pair(dset, path, index)
     return rsp, ref, x, np.minimum(data, 1.0)
 
 

@@ -39,6 +39,7 @@ import tomli_w
 
 from ema.uff import write_frfs
 from rom.academic import AcademicParams, build_bladed_disk
+from rom.calibration import component_mass
 from rom.solver import nodal_diameters
 
 from .films import ORIENTATION, FilmParams, render_film, write_film
@@ -451,15 +452,10 @@ class _CampaignWriter:
         return self.n_files
 
 
-def _mass_kg(M) -> float:
-    """A component's mass (kg): the x-translation's kinetic energy of its mass matrix, 1ᵀ M_xx 1."""
-    return float(M[0::3, 0::3].sum())
-
-
 def _weighed(twin) -> dict:
     """What a lab's balance says (manifest ``[masses]``): the disk to 0.1 g, each blade to 1 mg (kg)."""
-    return {"disk_kg": round(_mass_kg(twin.truth_disk.M), 4),
-            "blade_kg": [round(_mass_kg(b.M), 6) for b in twin.blades]}
+    return {"disk_kg": round(component_mass(twin.truth_disk), 4),
+            "blade_kg": [round(component_mass(b), 6) for b in twin.blades]}
 
 
 def _specimen_truth(twin) -> dict:

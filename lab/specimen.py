@@ -82,14 +82,13 @@ def truth_disk(bd: BladedDisk, E_offset: float, rho_offset: float, sector_moduli
     if sector_moduli is None:
         K, M = assemble(disk.coords, conn, E, mat.nu, rho)
     else:
-        # K is linear in E: the sum of each sector's elements assembled with that sector's modulus.
+        # K is linear in E and M in ρ: each is the sum of the sectors' elements assembled on their own.
         sector = sector_of_elements(bd)
-        K = None
+        K = M = None
         for s in range(bd.n_slots):
-            Ks, _ = assemble(disk.coords, conn[sector == s], E * (1.0 + sector_moduli[s]), mat.nu, rho)
-            K = Ks if K is None else K + Ks
-        _, M = assemble(disk.coords, conn, E, mat.nu, rho)
-        K = sp.csr_matrix(K)
+            Ks, Ms = assemble(disk.coords, conn[sector == s], E * (1.0 + sector_moduli[s]), mat.nu, rho)
+            K, M = (Ks, Ms) if K is None else (K + Ks, M + Ms)
+        K, M = sp.csr_matrix(K), sp.csr_matrix(M)
     meta = {**disk.meta, "E": E, "rho": rho}
     return Component(disk.name, K, M, disk.node_ids, disk.coords, dict(disk.node_sets), meta, disk.elements)
 

@@ -66,7 +66,8 @@ class RunOptions:
         PCA components per flank of the posterior's prior; default: enough for 95 % of the films' variance.
     calibrate : bool
         Calibrate E and ρ of the disk and the blades on the tests before any reduction (paper §5, Table 4;
-        :mod:`bladetwin.stages.calibration`); ``False`` keeps the model's materials.
+        :mod:`bladetwin.stages.calibration`; ``bladetwin run --calibrate``); ``False`` (default, until the bundled
+        campaign is regenerated) keeps the model's materials.
     rom : {"updated", "paper"}
         ``"updated"`` (default) also calibrates the ROM beyond Eq. 19 on the disk–one-blade tests (contact
         stiffness, in-situ blade corrections: :mod:`identify.rom_update`) and validates it beside the paper's;
@@ -156,13 +157,13 @@ def identify_inputs(campaign, opts: RunOptions) -> list[str]:
             and (n != "numerical" or _has_reference(campaign))]
 
 
-def campaign_sources(campaign, bd, store, opts: RunOptions, nominal: Source | None = None) -> dict[str, Source]:
+def campaign_sources(campaign, model: Source, store, opts: RunOptions, nominal: Source | None = None
+                     ) -> dict[str, Source]:
     """The values a campaign's pipeline starts from, each with the key its dependants hash.
 
-    ``bd`` is the model the stages use (calibrated where the run calibrates), ``nominal`` the uncalibrated one
-    the calibration starts from (default: ``bd``).
+    ``model`` is the FE model the stages use, keyed by :func:`~bladetwin.stages.models.model_key` (calibrated
+    where the run calibrates); ``nominal`` the uncalibrated one the calibration starts from (default: ``model``).
     """
-    model = Source(bd, models.model_key(bd))
     src = {"campaign": Source(campaign, hash_inputs("campaign", str(campaign.root),
                                                    (campaign.root / "campaign.toml").read_bytes())),
            "fe_model": model, "fe_nominal": model if nominal is None else nominal,
@@ -183,7 +184,10 @@ def _ema_nodes(p: Pipeline, campaign) -> None:
                    label=f"EMA {name}", version=5 if t.type == "assembly" else 2))
     blades = {test_name(t): f"ema/{test_name(t)}" for t in campaign.of_type("blade")}
     p.add(Node("blade_table", measured.blade_table, blades, where="parent"))
-    # the paper's calibration (§5): a worker node, since it solves the model's first modes
+
+
+def _calibration_node(p: Pipeline, campaign) -> None:
+    """The paper's calibration (§5): a worker node, since it solves the model's first modes."""
     cal = {"bd": "fe_nominal", "campaign": "campaign", "blades": "blade_table"}
     if campaign.of_type("disk"):
         cal["disk"] = "ema/disk"
@@ -361,6 +365,8 @@ def campaign_pipeline(campaign, opts: RunOptions) -> Pipeline:
     """Every node of ``bladetwin run`` for ``campaign`` (names as in the module notes)."""
     p = Pipeline()
     _ema_nodes(p, campaign)
+    if opts.calibrate:
+        _calibration_node(p, campaign)
     _model_nodes(p)
     _pattern_nodes(p, opts, campaign.n_blades)
     _identify_nodes(p, campaign, opts)
