@@ -187,17 +187,38 @@ class _VarPro:
         )
         return self.Yr - Qa @ proj, c, Qa
 
+    def _projected(self, lam: np.ndarray, c: np.ndarray, Qa: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The basis derivatives off the basis' span and the coefficients they multiply.
+
+        Mode r's parameter p moves only mode r's two basis columns, so its Kaufman column is
+        ``-(I - Q Qᵀ) U_rp C_r``: ``U_rp`` (2 n_f, 2) the real-stacked derivatives of the two columns, ``C_r``
+        (2, k) their coefficients. Returns ``Ũ`` (2 n_f, n_modes, 2, 2) and ``C`` (n_modes, 2, k).
+        """
+        n = lam.size
+        d1, d2 = _basis_derivatives(lam, self.f, self.form)
+        U = np.stack([d1, d2], axis=3)  # (n_f, n, 2 parameters, 2 columns)
+        flat = np.concatenate([U.real, U.imag], axis=0).reshape(2 * self.f.size, -1)
+        flat = flat - Qa @ (Qa.T @ flat)
+        return flat.reshape(2 * self.f.size, n, 2, 2), np.stack([c[:n], c[n : 2 * n]], axis=1)
+
     def jacobian(self, lam: np.ndarray, c: np.ndarray, Qa: np.ndarray) -> np.ndarray:
         """d(residual)/d(f_r [Hz], ζ_r), Kaufman's approximation, shape (2 n_f · k, 2 n_modes)."""
-        n, k = lam.size, self.Yr.shape[1]
-        d1, d2 = _basis_derivatives(lam, self.f, self.form)
-        J = np.empty((self.Yr.shape[0] * k, 2 * n))
-        for r in range(n):
-            for p in range(2):
-                dB = d1[:, r, p][:, None] * c[r][None, :] + d2[:, r, p][:, None] * c[n + r][None, :]
-                dBr = np.vstack([dB.real, dB.imag])
-                J[:, p * n + r] = -(dBr - Qa @ (Qa.T @ dBr)).ravel()
-        return J
+        U, C = self._projected(lam, c, Qa)
+        J = -np.einsum("xrpa,rak->xkpr", U, C, optimize=True)
+        return J.reshape(U.shape[0] * C.shape[2], 2 * lam.size)
+
+    def normal_equations(self, lam: np.ndarray, c: np.ndarray, Qa: np.ndarray, res: np.ndarray
+                         ) -> tuple[np.ndarray, np.ndarray]:
+        """``JᵀJ`` and ``Jᵀ r`` of :meth:`jacobian` without forming J (its columns are rank two, see
+        :meth:`_projected`): O(n_f · n_modes²) instead of O(n_f · k · n_modes²)."""
+        n = lam.size
+        U, C = self._projected(lam, c, Qa)
+        flat = U.reshape(U.shape[0], -1)
+        G = (flat.T @ flat).reshape(n, 2, 2, n, 2, 2)
+        CC = np.einsum("rak,sbk->rasb", C, C)
+        JtJ = np.einsum("rpasqb,rasb->prqs", G, CC, optimize=True).reshape(2 * n, 2 * n)
+        Jtr = -np.einsum("rpak,rak->pr", (flat.T @ res).reshape(n, 2, 2, -1), C).reshape(2 * n)
+        return JtJ, Jtr
 
 
 def refine_poles(
@@ -242,7 +263,7 @@ def refine_poles(
     if vp.Yr.shape[0] * vp.Yr.shape[1] * 2 * n > max_size:
         log.info("pole refinement skipped: %d modes on %d lines is beyond max_size", n, vp.f.size)
         return poles
-    evaluate, jacobian = vp.evaluate, vp.jacobian
+    evaluate = vp.evaluate
 
     fr, zr = modal_from_pole(poles)
     zr = np.clip(zr, 1e-6, None)
@@ -251,12 +272,10 @@ def refine_poles(
     cost0 = cost = float(np.sum(r**2))
     mu = 1e-3
     for _ in range(max_iter):
-        J = jacobian(lam, c, Qa)
+        JtJ, g = vp.normal_equations(lam, c, Qa, r)
         # scale parameters: frequencies relative to f, damping relative to zeta
         D = np.concatenate([fr, zr])
-        Js = J * D[None, :]
-        g = Js.T @ r.ravel()
-        JtJ = Js.T @ Js
+        JtJ, g = JtJ * np.outer(D, D), g * D
         improved = False
         for _ in range(10):
             step = -np.linalg.solve(JtJ + mu * np.diag(np.diag(JtJ) + 1e-12), g)
