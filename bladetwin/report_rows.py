@@ -15,6 +15,7 @@ from pathlib import Path
 from typing import Any
 
 from .report import MISSING, SUMMARY_NAME, UNAVAILABLE, ReportError, as_float, format_number, one_line, read_csv_table
+from .rom_summary import CONTROL_TEXT
 
 __all__ = ["report_context"]
 
@@ -35,6 +36,8 @@ _METRIC_ROWS = (
     ("mean_mac", "mean MAC"),
     ("n_modes", "n modes (paired)"),
 )
+#: A table row's label (first column) → the line the table's caption gains where the row is there.
+_ROW_TEXT = {"B_baseline": CONTROL_TEXT}
 _KIND_TEXT = {
     "virtual": "virtual campaign (simulated on the digital twin; the true patterns are known)",
     "lab": "laboratory campaign (measured; only the filmed joints have a reference)",
@@ -174,6 +177,7 @@ def _table_view(folder: _Folder, spec: Any, where: str, number: int) -> _Table:
         if vmax > 0:
             scale = format_number(vmax)
     caption = str(spec.get("caption") or p.name)
+    caption = " ".join([caption, *(_ROW_TEXT[r[0]] for r in raw if r and r[0] in _ROW_TEXT)])
     name = Path(spec["file"]).as_posix()
     return _Table(f"tab-{number}", number, caption, name, folder.href(p), header, rows, heatmap, scale)
 

@@ -1,7 +1,7 @@
 """summary.json's ``rom`` block and the ROM update's tables: the paper's ROM beside the updated one.
 
-Cases A, B and C of both ROMs come from the validation node; the updated ROM's parameters (contact stiffness,
-each blade's in-situ corrections) from :mod:`bladetwin.stages.rom_update`.
+Cases A, B and C of both ROMs, and the control B_baseline, come from the validation node; the updated ROM's
+parameters (contact stiffness, each blade's in-situ corrections) from :mod:`bladetwin.stages.rom_update`.
 """
 
 from __future__ import annotations
@@ -10,8 +10,8 @@ from dataclasses import asdict
 
 import numpy as np
 
-__all__ = ["rom_summary", "correction_rows", "CORRECTION_HEADER", "family_rows", "FAMILY_HEADER", "case_rows",
-           "CASE_HEADER"]
+__all__ = ["CASES", "CONTROL_TEXT", "rom_summary", "correction_rows", "CORRECTION_HEADER", "family_rows",
+           "FAMILY_HEADER", "case_rows", "CASE_HEADER"]
 
 CORRECTION_HEADER = ["blade", "free mode", "free frequency (Hz)", "δ free (%)", "in-situ correction (% frequency)",
                      "d1b RMS residual, paper ROM (%)", "d1b RMS residual, updated ROM (%)"]
@@ -49,8 +49,8 @@ def _parameters(res) -> dict:
 
 
 def rom_summary(res) -> dict | None:
-    """summary.json's ``rom``: ``paper.cases``, ``updated.cases`` (A, B, C), ``updated.parameters`` and the
-    family-wise view; ``None`` when the update did not run."""
+    """summary.json's ``rom``: ``paper.cases``, ``updated.cases`` (A, B, B_baseline, C: :data:`CASES`),
+    ``updated.parameters`` and the family-wise view; ``None`` when the update did not run."""
     rom = res.cases.get("rom")
     if rom is None or "answer" not in res.rom_update:
         return None
@@ -61,10 +61,19 @@ def rom_summary(res) -> dict | None:
                         "families": {k: [asdict(r) for r in fam.get(f"updated_{k}", [])] for k in ("B", "C")}}}
 
 
+#: The rows of the cases' table: B (the run's answer) between the control and C (the true patterns).
+CASES = ("A", "B", "B_baseline", "C")
+
+#: What the control ``B_baseline`` means, in one line (the report prints it beside the table).
+CONTROL_TEXT = ("B_baseline is the control: Case B with the baseline pattern (the films' majority) at every "
+                "unfilmed joint, each blade's in-situ correction re-fitted for it, against the same full-assembly "
+                "test; where B_baseline ≤ B, the identified contact does not improve the ROM's match with the test.")
+
+
 def case_rows(rom: dict) -> list[list]:
-    """Cases A, B, C of both ROMs side by side (rows of :data:`CASE_HEADER`)."""
+    """Cases A, B, the control B_baseline and C of both ROMs side by side (rows of :data:`CASE_HEADER`)."""
     rows = []
-    for k in ("A", "B", "C"):
+    for k in CASES:
         row: list = [k]
         for kind in ("paper", "updated"):
             c = rom[kind]["cases"].get(k)

@@ -310,8 +310,18 @@ def _answer(opts: RunOptions, name: str) -> str:
     return f"patterns/posterior_{name}" if opts.posterior else f"patterns/{name}"
 
 
+#: The ROM update's sets of patterns: name → what its progress message calls them, and its nodes' priority.
+#: ``baseline`` is the control (Case B with the films' majority at every unfilmed joint): it is ready as soon as
+#: the contact stiffness is, and runs after the answer's, beside the identification's other work.
+UPDATE_SETS = {"answer": ("identified", 34), "reference": ("true", 34), "baseline": ("baseline", 32)}
+
+
 def _update_nodes(p: Pipeline, campaign, opts: RunOptions) -> list[str]:
-    """The ROM update's nodes (beyond Eq. 19); returns the names of its full solves. Never the assembly test."""
+    """The ROM update's nodes (beyond Eq. 19); returns the names of its full solves. Never the assembly test.
+
+    The control ``full/updated_baseline`` (each blade's ε re-fitted for the baseline patterns) only where the
+    campaign has a full-assembly test, the one thing it is compared with (Case B).
+    """
     rom = {"disk": "disk_cb", "blade": "blade_rubin", "dataset": "dataset", "features": "features",
            "delta_all": "delta_all", "bd": "fe_model"}
     d1b = {test_name(t): f"ema/{test_name(t)}" for t in campaign.of_type("d1b")}
@@ -321,19 +331,24 @@ def _update_nodes(p: Pipeline, campaign, opts: RunOptions) -> list[str]:
     sets = {"answer": _answer(opts, "experimental")}
     if "numerical" in inputs:
         sets["reference"] = "reference"
+    if campaign.of_type("assembly"):
+        sets["baseline"] = "patterns/baseline"
     for name, pats in sets.items():
+        what, prio = UPDATE_SETS[name]
         p.add(Node(f"rom_update/{name}", rom_update.update_node,
-                   {**rom, "stiffness": "rom_update/stiffness", "patterns": pats, **d1b}, priority=34,
-                   label=f"in-situ corrections ({'true' if name == 'reference' else 'identified'} patterns)"))
-    solves = {"updated": (_answer(opts, "experimental"), "rom_update/answer")}
+                   {**rom, "stiffness": "rom_update/stiffness", "patterns": pats, **d1b}, priority=prio,
+                   label=f"in-situ corrections ({what} patterns)"))
+    solves = {"updated": (_answer(opts, "experimental"), "answer")}
     if "reference" in sets:
-        solves["updated_reference"] = ("reference", "rom_update/reference")
-        solves["updated_numerical"] = (_answer(opts, "numerical"), "rom_update/reference")
+        solves["updated_reference"] = ("reference", "reference")
+        solves["updated_numerical"] = (_answer(opts, "numerical"), "reference")
+    if "baseline" in sets:
+        solves["updated_baseline"] = ("patterns/baseline", "baseline")
     for name, (pats, upd) in solves.items():
         p.add(Node(f"full/{name}", rom_update.solve_updated,
                    {"cyclic": "disk_cyclic", "bd": "fe_model", "blade": "blade_rubin", "patterns": pats,
-                    "delta_all": "delta_all", "n_modes": "n_full_modes", "update": upd},
-                   priority=33, label=f"full-assembly ROM '{name}' solved"))
+                    "delta_all": "delta_all", "n_modes": "n_full_modes", "update": f"rom_update/{upd}"},
+                   priority=UPDATE_SETS[upd][1] - 1, label=f"full-assembly ROM '{name}' solved"))
     return list(solves)
 
 
@@ -351,8 +366,9 @@ def _validation_nodes(p: Pipeline, campaign, opts: RunOptions) -> None:
                    priority=prio, label=f"full-assembly ROM '{name}' solved"))
     if opts.updated:
         names += _update_nodes(p, campaign, opts)
+    # version 2: the control B_baseline of both ROMs (cases["rom"])
     p.add(Node("validation", validation.full_validation, {**assembly, **{n: f"full/{n}" for n in names}},
-               {"bias": opts.bias, "answer": "posterior" if opts.posterior else "knn"}, where="parent"))
+               {"bias": opts.bias, "answer": "posterior" if opts.posterior else "knn"}, version=2, where="parent"))
     numerical = "patterns/numerical" if "numerical" in inputs else "reference"
     p.add(Node("d1b_rows", validation.d1b_rows, {
         "disk": "disk_cb", "blade": "blade_rubin", "dataset": "dataset", "features": "features",

@@ -33,7 +33,8 @@ class RunResult:
     Frequencies in Hz, δ and bias relative (0.01 = 1 %). ``ema`` maps each test's name to (its manifest entry,
     its :class:`~bladetwin.stages.measured.TestFit`); ``final_patterns`` holds one pattern per joint 1..N (films
     at the filmed joints); ``full`` the full-assembly ROM modes by name (identified, identified_no_bias,
-    baseline, reference, numerical).
+    baseline, reference, numerical; with the updated ROM also updated, updated_reference, updated_numerical and
+    the control updated_baseline).
     """
 
     campaign: object
@@ -71,7 +72,8 @@ class RunResult:
     answers: dict = field(default_factory=dict)
     #: The ROM update beyond Eq. 19, when it ran (``--rom updated``): ``"stiffness"``
     #: (:class:`identify.rom_update.StiffnessFit` or None), ``"answer"`` and, with reference patterns,
-    #: ``"reference"`` (:class:`identify.rom_update.UpdatedROM` with the run's answer or the true patterns).
+    #: ``"reference"`` (:class:`identify.rom_update.UpdatedROM` with the run's answer or the true patterns) and,
+    #: with a full-assembly test, ``"baseline"`` (the control's: the films' majority at every unfilmed joint).
     rom_update: dict = field(default_factory=dict)
     #: The paper's material calibration (:class:`bladetwin.stages.calibration.CalibrationResult`), None when off.
     calibration: object = None

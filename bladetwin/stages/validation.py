@@ -116,10 +116,14 @@ def full_validation(assembly=None, *, bias: bool, answer: str = "knn", **solves:
 
     With the updated ROM's solves (``updated``, ``updated_reference``, ``updated_numerical``), ``cases["rom"]``
     holds Cases A, B and C of the paper's ROM (with the run's ``answer``: ``"knn"`` or ``"posterior"``) and of
-    the updated ROM, side by side.
+    the updated ROM, side by side, and the control ``B_baseline`` of each: Case B with the baseline pattern
+    (the films' majority) at every unfilmed joint, for the updated ROM from its solve ``updated_baseline``
+    (each blade's in-situ correction re-fitted for those patterns; its figures only, not in ``comparisons``).
+    Where ``B_baseline`` ≤ ``B``, the identified contact does not improve the match with the test.
     """
     full = {name: s.modes for name, s in solves.items()}
     comps: dict[str, ModeComparison] = {}
+    control: ModeComparison | None = None
     notes: list[str] = []
     measured = assembly.model if assembly is not None and assembly.model.n_modes else None
     f_max = None
@@ -136,6 +140,8 @@ def full_validation(assembly=None, *, bias: bool, answer: str = "knn", **solves:
         for name, solve in (("updated_B", "updated"), ("updated_C", "updated_reference")):
             if solve in full:
                 comps[name] = vs_measured(measured, full[solve])
+        if "updated_baseline" in full:  # the control: its figures only (no comparison figure of its own)
+            control = vs_measured(measured, full["updated_baseline"])
     else:
         notes.append("No full-assembly test: Cases B and C are unavailable.")
     if "reference" in full:
@@ -166,7 +172,8 @@ def full_validation(assembly=None, *, bias: bool, answer: str = "knn", **solves:
     if "posterior" in full:
         cases["posterior"] = {k: case_figures(comps.get(f"posterior_{k}")) for k in ("A", "B")}
     if "updated" in full:
+        updated = {k: case_figures(comps.get(f"updated_{k}")) for k in ("A", "B", "C")}
         cases["rom"] = {"paper": {"A": case_figures(comps.get(paper + "A")), "B": case_figures(comps.get(paper + "B")),
-                                  "C": cases["C"]},
-                        "updated": {k: case_figures(comps.get(f"updated_{k}")) for k in ("A", "B", "C")}}
+                                  "C": cases["C"], "B_baseline": cases["baseline"]["B"]},
+                        "updated": {**updated, "B_baseline": case_figures(control)}}
     return FullValidation(comps, cases, notes, families)

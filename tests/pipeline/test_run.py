@@ -268,8 +268,9 @@ def test_updated_rom_beats_the_papers_on_the_measured_assembly(cold):
     out, s = cold
     rom = s["rom"]
     paper, upd = rom["paper"]["cases"], rom["updated"]["cases"]
-    assert set(paper) == set(upd) == {"A", "B", "C"}
+    assert set(paper) == set(upd) == {"A", "B", "B_baseline", "C"}
     assert paper["B"] == s["cases"]["B"] and paper["C"] == s["cases"]["C"]
+    assert paper["B_baseline"] == s["cases"]["baseline"]["B"]  # the paper ROM's control: Table 8's baseline B
     assert upd["B"]["mean_abs_df_pct"] < paper["B"]["mean_abs_df_pct"]
     assert upd["B"]["mean_mac"] > paper["B"]["mean_mac"]
     p = rom["updated"]["parameters"]
@@ -282,6 +283,61 @@ def test_updated_rom_beats_the_papers_on_the_measured_assembly(cold):
     import pyuff
 
     assert "updated ROM" in pyuff.UFF(str(out / "identified_rom_modes.uff")).read_sets(0)["id1"]
+
+
+def test_the_updated_roms_control_is_case_b_with_the_baseline_and_with_the_truth_case_c(campaign, cold):
+    """The control (issue 44): the updated ROM's Case B with the films' majority at every unfilmed joint, each
+    blade's in-situ correction re-fitted for it. Recomputed here through the public nodes (as
+    ../shared/notes/updated_rom_control_probe.py does): every upstream node from the run's store, then the ROM
+    update, the full solve and the validation with only the patterns changed. With the true patterns instead of
+    the baseline, the same path gives Case C: the control is Case B's path, on other patterns."""
+    import warnings
+
+    from threadpoolctl import threadpool_limits
+
+    from bladetwin.rom_summary import CONTROL_TEXT
+    from bladetwin.run import run_nodes
+    from bladetwin.stages import rom_update, validation
+
+    root, camp = campaign
+    out, s = cold
+    cases = s["rom"]["updated"]["cases"]
+    control = cases["B_baseline"]
+    assert control["n_modes"] > 0 and 0 < control["mean_mac"] <= 1
+    names = ["validation", "rom_update/answer", "rom_update/baseline", "full/updated", "full/updated_baseline",
+             "patterns/baseline", "reference", "known", "n_full_modes"]
+    opts = RunOptions(cache_dir=root / "cache", refine=0, method="knn", calibrate=True, workers=1)
+    res, runner = run_nodes(read_campaign(camp), names, opts)
+    # the control is two stored nodes of the run (its in-situ corrections and its full solve), read back here
+    assert {"rom_update/baseline", "full/updated_baseline"} <= set(runner.reused), runner.computed
+    pipe = runner.pipeline
+    args = {n: {a: res[src] for a, src in pipe[n].inputs.items()} for n in ("rom_update/answer", "full/updated")}
+    val = pipe["validation"]
+    val_args = {a: res[src] for a, src in val.inputs.items()}
+
+    def case_b(patterns: list) -> dict:
+        with threadpool_limits(1), warnings.catch_warnings():  # as on the run's workers, which record them
+            warnings.simplefilter("ignore")
+            upd = rom_update.update_node(**{**args["rom_update/answer"], "patterns": patterns})
+            solve = rom_update.solve_updated(**{**args["full/updated"], "patterns": patterns, "update": upd})
+        return validation.full_validation(**{**val_args, "updated": solve}, **val.params).cases["rom"]["updated"]["B"]
+
+    def same(a: dict, b: dict) -> bool:
+        return a["n_modes"] == b["n_modes"] and np.allclose([a["mean_abs_df_pct"], a["mean_mac"]],
+                                                            [b["mean_abs_df_pct"], b["mean_mac"]], rtol=1e-6, atol=0)
+
+    assert same(case_b(res["patterns/baseline"]), control)
+    assert same(case_b(res["reference"]), cases["C"])
+    # teeth: the control is neither Case C nor the answer's Case B, and its re-fitted ε differs from the answer's
+    # only at the unfilmed joints (the films are in both sets of patterns)
+    assert not same(control, cases["C"]) and not same(control, cases["B"])
+    eps_base, eps_answer = res["rom_update/baseline"].corrections, res["rom_update/answer"].corrections
+    filmed = np.array([j - 1 for j in res["known"]])
+    np.testing.assert_array_equal(eps_base[filmed], eps_answer[filmed])
+    assert not np.allclose(np.delete(eps_base, filmed, 0), np.delete(eps_answer, filmed, 0))
+    # the report: the control beside B (the run's answer) and C (the true patterns), and what it means
+    assert [r[0] for r in csv_rows(out / "rom_cases.csv")] == ["A", "B", "B_baseline", "C"]
+    assert CONTROL_TEXT.replace("'", "&#39;") in (out / "report.html").read_text()
 
 
 def test_the_rom_update_never_reads_the_assembly_test(campaign, cold, tmp_path):
