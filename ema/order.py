@@ -32,7 +32,8 @@ def fit_auto_order(frf, *, start: int = AUTO_START, factor: int = AUTO_FACTOR, l
     limit : int
         Highest order tried.
     **fit_kwargs
-        Passed to :func:`ema.fit` (``method``, ``band``, ``criteria``, …), except ``max_order`` and ``orders``.
+        Passed to :func:`ema.fit` (``method``, ``band``, ``criteria``, …), except ``max_order`` and ``orders``;
+        ``grow`` is False unless given (each rung is fitted at its own order).
 
     Returns
     -------
@@ -49,6 +50,7 @@ def fit_auto_order(frf, *, start: int = AUTO_START, factor: int = AUTO_FACTOR, l
             raise EMAError(f"{name} must be an integer ≥ {lo}, got {v!r}")
     if "max_order" in fit_kwargs or "orders" in fit_kwargs:
         raise EMAError("the order is chosen from the data: give no max_order or orders")
+    fit_kwargs.setdefault("grow", False)  # the ladder chooses the order: no growth inside a rung
     order = min(int(start), int(limit))
     best = fit(frf, max_order=order, **fit_kwargs)
     while order * factor <= limit:
