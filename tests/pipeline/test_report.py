@@ -259,6 +259,30 @@ def test_heatmap_and_tables(folder, capsys):
     assert [c["text"] for c in joints["body"][1]][-1] == "0.4567 ⚠"  # joint 2: flagged
 
 
+def test_the_roms_control_sits_between_b_and_c_and_its_caption_says_what_it_means(folder, capsys):
+    """The ROM table's control row (B_baseline, issue 44) gains one line on its table's caption, and only there."""
+    from bladetwin.rom_summary import CASE_HEADER, CONTROL_TEXT, case_rows
+
+    def case(df):
+        return {"mean_abs_df_pct": df, "mean_mac": 0.98, "n_modes": 41, "n_reference_modes": 44}
+
+    rom = {"paper": {"cases": {"A": None, "B": case(0.44), "B_baseline": case(0.41), "C": case(0.41)}},
+           "updated": {"cases": {"A": None, "B": case(0.02), "B_baseline": case(0.011), "C": case(0.005)}}}
+    rows = case_rows(rom)
+    assert [r[0] for r in rows] == ["A", "B", "B_baseline", "C"]
+    assert rows[2][1:] == [0.41, 0.98, 41, 0.011, 0.98, 41] and rows[0][1:] == [None] * 6
+    _write_csv(folder / "rom_cases.csv", CASE_HEADER, [["" if v is None else v for v in r] for r in rows])
+    summary = json.loads((folder / "summary.json").read_text())
+    summary["sections"].append({"id": "rom_update", "title": "The ROM updated beyond Eq. 19",
+                                "tables": [{"file": "rom_cases.csv", "caption": "Cases A, B and C."}]})
+    (folder / "summary.json").write_text(json.dumps(summary))
+    _, html = _render_cli(folder, capsys)
+    assert html.count(CONTROL_TEXT.replace("'", "&#39;")) == 1
+    assert "Cases A, B and C. " + CONTROL_TEXT.replace("'", "&#39;") in html
+    table = next(t for t in _parse(html).tables if [c["text"] for c in t["head"][0]] == CASE_HEADER)
+    assert [r[0]["text"] for r in table["body"]] == ["A", "B", "B_baseline", "C"]
+
+
 def test_missing_figure_is_one_line_exit_2(folder, capsys):
     (folder / "figs" / "patterns.png").unlink()
     assert main(["report", str(folder)]) == 2
