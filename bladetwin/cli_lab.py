@@ -29,9 +29,27 @@ def register(sub) -> None:
     p.add_argument("--realism", default="realistic", choices=["realistic", "ideal"],
                    help="the truth twin: a specimen and test that differ from the model as real ones do "
                         "(default), or the model's own parts, for tests that isolate one stage (docs/twin.md)")
+    p.add_argument("--coherence", default="all", metavar="TYPES",
+                   help="test types whose UFF files carry the hammer test's coherence beside the FRFs (it adds "
+                        "half a file's size): all (default), none, or a comma list of blade, disk, d1b, assembly")
     p.add_argument("--name", default=None, help="campaign name in the manifest (default: the folder name)")
     p.add_argument("--json", action="store_true", help="print {campaign, n_files, truth} as JSON")
     p.set_defaults(func=_cmd_simulate)
+
+
+def parse_coherence(text: str) -> tuple[str, ...]:
+    """``--coherence d1b,assembly`` → ("d1b", "assembly"); ``all`` and ``none`` as named."""
+    from lab.campaign import TEST_TYPES
+
+    words = tuple(t for t in text.replace(" ", "").split(",") if t)
+    if words == ("all",):
+        return TEST_TYPES
+    if words == ("none",):
+        return ()
+    bad = [w for w in words if w not in TEST_TYPES]
+    if bad or not words:
+        raise ValueError(f"--coherence {text!r}: expected all, none, or a comma list of {', '.join(TEST_TYPES)}")
+    return words
 
 
 def parse_known(text: str | None) -> tuple[int, ...] | None:
@@ -61,7 +79,8 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     if grid is not None:
         kw["grid"] = grid
     spec = CampaignSpec(seed=args.seed, level=args.level, known_joints=parse_known(args.known),
-                        name=args.name or out.name, realism=args.realism, **kw)
+                        name=args.name or out.name, realism=args.realism,
+                        coherence=parse_coherence(args.coherence), **kw)
     # Every argument is checked before minutes of simulation (blade count, grid, level, known joints).
     spec.model_params()
     spec.known()

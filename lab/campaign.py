@@ -9,7 +9,8 @@ disk/disk.uff                 free disk (1 axial point per sector)
 d1b/joint_NN.uff              disk + blade NN in slot NN
 assembly/assembly.uff         the full bladed disk
 films/joint_NN_L.png, _R.png  film scans of the known joints
-truth/truth.json              what the identification never sees (seed, deltas, exact frequencies, damping)
+truth/truth.json              what the identification never sees (seed, deltas, exact frequencies, damping and
+                              the damping each test's exponential window added)
 truth/patterns.npz            true contact grids L, R: bool, shape (n_blades, rows, cols), in the state the
                               films and the disk–one-blade tests saw
 truth/assembly_patterns.npz   the same after the blades were re-seated, in the full-assembly test
@@ -43,6 +44,7 @@ from rom.calibration import component_mass
 from rom.solver import nodal_diameters
 
 from .films import ORIENTATION, FilmParams, render_film, write_film
+from .hammer import hammer_test
 from .patterns import PressureParams, flank_coordinates, simulate_pressure
 from .rig import MIN_SNR, RigSetup, canonical_degenerate, damping_ratios, measure, peak_snr
 from .truth import (
@@ -52,7 +54,7 @@ from .truth import (
     solve_truth,
 )
 
-__all__ = ["CampaignSpec", "CampaignInfo", "default_known_joints", "simulate_campaign"]
+__all__ = ["CampaignSpec", "CampaignInfo", "TEST_TYPES", "default_known_joints", "simulate_campaign"]
 
 #: Modes each test must cover (issue 9 item 4): free blade, free disk, disk–one-blade; the full assembly
 #: covers the first three blade-mode families (3 × n_blades modes) and the disk modes among them.
@@ -63,6 +65,8 @@ FULL_INPUTS = 6
 #: Spectral lines per test: the bundled campaign must stay small (≤ 40 MB; 8 bytes a complex value in
 #: single-precision UFF 58b).
 MAX_LINES = {"blade": 4000, "disk": 4000, "d1b": 2500, "assembly": 3500}
+#: The test types of a campaign.
+TEST_TYPES = ("blade", "disk", "d1b", "assembly")
 
 
 #: FilmMeta fields kept out of the manifest: the misregistration applied to the film is truth.
@@ -116,7 +120,8 @@ class CampaignSpec:
 
     ``realism`` picks the truth twin (:data:`lab.truth.REALISM`): ``"realistic"`` (a specimen and a test that
     differ from the model as real ones do, docs/twin.md) or ``"ideal"`` (the model's own parts, for tests that
-    isolate one stage); ``truth`` overrides it with parameters made in Python.
+    isolate one stage); ``truth`` overrides it with parameters made in Python. ``coherence`` names the test
+    types whose files carry the time-domain hammer test's coherence (ignored by the ideal twin's test).
     """
 
     seed: int = 0
@@ -126,14 +131,19 @@ class CampaignSpec:
     known_joints: tuple[int, ...] | None = None
     name: str = "academic"
     realism: str = "realistic"
+    coherence: tuple[str, ...] = TEST_TYPES
     truth: TruthParams | None = None
-    pressure: PressureParams = field(default_factory=PressureParams)
+    pressure: PressureParams | None = None
     film: FilmParams = field(default_factory=FilmParams)
     max_lines: dict = field(default_factory=lambda: dict(MAX_LINES))
 
     def truth_params(self) -> TruthParams:
         """The twin's parameters: ``truth`` where given, else those of the ``realism`` setting."""
         return self.truth if self.truth is not None else TruthParams.of(self.realism)
+
+    def pressure_params(self) -> PressureParams:
+        """The contact-pressure generator: ``pressure`` where given, else that of the ``realism`` setting."""
+        return self.pressure if self.pressure is not None else PressureParams.of(self.realism)
 
     def model_params(self) -> AcademicParams:
         """The academic-twin parameters (raises ``ValueError`` naming a bad blade count, grid or level)."""
@@ -147,9 +157,9 @@ class CampaignSpec:
         """
         cmd = (f"bladetwin lab simulate --out {out} --seed {self.seed} --blades {self.n_blades} "
                f"--grid {self.grid[0]}x{self.grid[1]} --level {self.level} --known {','.join(map(str, self.known()))}"
-               f" --name {self.name} --realism {self.realism}")
+               f" --name {self.name} --realism {self.realism} --coherence {','.join(self.coherence) or 'none'}")
         custom = self != CampaignSpec(self.seed, self.n_blades, tuple(self.grid), self.level, self.known_joints,
-                                      self.name, self.realism)
+                                      self.name, self.realism, tuple(self.coherence))
         return cmd + (" (plus settings made in Python: truth, pressure, film or lines)" if custom else "")
 
     def known(self) -> tuple[int, ...]:
@@ -251,7 +261,8 @@ def _write(spec: CampaignSpec, params: AcademicParams, known: tuple[int, ...], r
 
 
 #: The per-test truth entries, each a mapping {"blades": [...], "disk": ..., "d1b": [...], "assembly": ...}.
-_TRUTH_TEST_KEYS = ("frequencies_hz", "damping_ratios", "all_frequencies_hz", "band_hz")
+_TRUTH_TEST_KEYS = ("frequencies_hz", "damping_ratios", "window_damping", "apparent_frequencies_hz",
+                    "all_frequencies_hz", "all_apparent_frequencies_hz", "band_hz")
 
 
 def _blade_tip(labels) -> list[int]:
@@ -283,7 +294,7 @@ class _CampaignWriter:
         say(f"academic twin, level {params.level}, {params.n_blades} blades, grid {params.grid[0]}x{params.grid[1]}")
         bd = build_bladed_disk(params)
         u, v = flank_coordinates(bd)
-        self.pressure = simulate_pressure(u, v, params.n_blades, rng_pressure, spec.pressure)
+        self.pressure = simulate_pressure(u, v, params.n_blades, rng_pressure, spec.pressure_params())
         self.patterns = self.pressure.patterns()
         node_pressure = np.stack([np.stack([self.pressure.pressure(s, f, u, v) for f in ("L", "R")])
                                   for s in range(1, params.n_blades + 1)])
@@ -346,15 +357,18 @@ class _CampaignWriter:
         else:
             seen = seen[:n_wanted]
         setup = _setup(f[seen[0]], f[seen[-1]], max_lines, f[seen])
-        frf = measure(modes, zeta, setup, self.rng_noise, inputs, outputs)
-        write_frfs(self.root / rel, frf, id1=f"bladetwin lab {kind}", precision="single")
-        self.n_files += 1
+        frf, window = self.measure(kind, rel, modes, zeta, setup, inputs, outputs)
         lo, hi = setup.band_hz
         snr = peak_snr(modes, zeta, setup, outputs, inputs)
         in_band = (f >= lo) & (f <= hi)
         visible = np.flatnonzero(in_band & (snr >= MIN_SNR))
+        # The exponential window moves each pole left by 1/τ, so the natural frequency the data hold is
+        # f √(1 + 2ζΔζ + Δζ²): about 1e-6 relative, a few standard deviations of a full-assembly EMA.
+        apparent = f * np.sqrt(1.0 + 2.0 * zeta * window + window**2)
         result = {"frequencies_hz": f[visible].tolist(), "damping_ratios": zeta[visible].tolist(),
-                  "all_frequencies_hz": f[in_band].tolist(), "band_hz": [lo, hi]}
+                  "window_damping": window[visible].tolist(), "apparent_frequencies_hz": apparent[visible].tolist(),
+                  "all_frequencies_hz": f[in_band].tolist(), "all_apparent_frequencies_hz": apparent[in_band].tolist(),
+                  "band_hz": [lo, hi]}
         if kind == "assembly":  # the exact shapes, to judge the EMA's (truth only: no fit ever reads them)
             self.assembly_modes = {"frequencies_hz": f[visible], "shapes": modes.meas_shapes[:, visible],
                                    "blade_energy": modes.blade_energy[visible],
@@ -363,6 +377,27 @@ class _CampaignWriter:
             disk_rows = [k for k, lab in enumerate(meas_labels) if lab[0] == "disk"]
             result["nodal_diameters"] = nodal_diameters(modes.meas_shapes[disk_rows][:, visible]).tolist()
         return result
+
+    def measure(self, kind: str, rel: str, modes, zeta: np.ndarray, setup: RigSetup, inputs: list[int],
+                outputs: list[int]) -> tuple:
+        """Write one test's UFF file: (its FRFs, the damping its exponential window adds to each mode, 0
+        without one).
+
+        The realistic twin runs the time-domain hammer test and exports its coherence beside the FRFs; the
+        ideal twin adds noise to the exact FRFs in the frequency domain (:func:`lab.rig.measure`).
+        """
+        hammer = self.truth_params.hammer
+        coherence = None
+        if hammer is None:
+            frf = measure(modes, zeta, setup, self.rng_noise, inputs, outputs)
+            window = np.zeros(modes.frequencies_hz.size)
+        else:
+            test = hammer_test(modes, zeta, setup, self.rng_noise, inputs, outputs, hammer.for_band(setup.band_hz[1]))
+            frf, window = test.frf, test.window_damping
+            coherence = test.coherence if kind in self.spec.coherence else None
+        write_frfs(self.root / rel, frf, id1=f"bladetwin lab {kind}", precision="single", coherence=coherence)
+        self.n_files += 1
+        return frf, window
 
     def tip_and_disk(self, labels) -> list[int]:
         """The blade tip, and the disk point of the next sector: a disk mode whose nodal line runs through the

@@ -29,7 +29,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from scipy import fft, signal
@@ -38,6 +38,7 @@ from ema.frf import FRFSet
 from ema.numbering import dof_label
 from rom.fe_assembly import AssemblyModes
 
+from .impacts import Impacts, draw_impacts, impact_force
 from .rig import RigSetup
 
 __all__ = ["HammerSettings", "HammerResult", "AnalyserGrid", "Impacts", "analyser_grid", "draw_impacts",
@@ -94,6 +95,11 @@ class HammerSettings:
     simulation_factor : int
         The structure's responses are computed on a grid at least this many times finer than the analyser's
         (refined further so that the pulse spans at least 8 samples): it keeps the response's aliases small.
+    tip_rule : float or None
+        A lab picks the hammer's tip for the band: :meth:`for_band` shortens the contact time to at most
+        ``tip_rule / f_max``, so that the force spectrum is down by at most 9.5 dB at the band's top (f T_c = 1;
+        harder tips and lighter hammers give contact times down to a few tens of µs). None: the contact
+        time as set, whatever the band.
 
     Notes
     -----
@@ -113,6 +119,15 @@ class HammerSettings:
     exp_window_end: float | None = 0.01
     oversampling: float = 2.56
     simulation_factor: int = 8
+    tip_rule: float | None = 1.0
+
+    def for_band(self, f_max_hz: float) -> HammerSettings:
+        """These settings with the tip a lab would take for a band up to ``f_max_hz`` (see ``tip_rule``)."""
+        if self.tip_rule is None or self.contact_time_s * f_max_hz <= self.tip_rule:
+            return self
+        t_c = self.tip_rule / f_max_hz
+        lo, hi = self.double_hit_delay_s
+        return replace(self, contact_time_s=t_c, double_hit_delay_s=(max(lo, t_c), max(hi, t_c)))
 
     def validate(self) -> None:
         """Raise ValueError, with a one-line message naming the field and what was expected, on a bad setting."""
@@ -150,6 +165,8 @@ class HammerSettings:
              "fs / f_max >= 2 (Nyquist; analysers use 2.56)")
         need(isinstance(self.simulation_factor, (int, np.integer)) and not isinstance(self.simulation_factor, bool)
              and self.simulation_factor >= 4, "simulation_factor", "an integer >= 4")
+        need(self.tip_rule is None or (real(self.tip_rule) and self.tip_rule > 0), "tip_rule",
+             "None or a positive f_max · T_c")
 
 
 @dataclass(frozen=True)
@@ -211,62 +228,6 @@ def analyser_grid(setup: RigSetup, settings: HammerSettings) -> AnalyserGrid:
     need = math.ceil(MIN_SAMPLES_PER_CONTACT / (settings.contact_time_s * n * df) - 1e-9)
     factor = fft.next_fast_len(max(int(settings.simulation_factor), need), real=True)
     return AnalyserGrid(n_samples=int(n), factor=int(factor), first_line=k0, n_lines=int(freq.size), df_hz=df)
-
-
-@dataclass(frozen=True)
-class Impacts:
-    """Random draws of a series of hits (one per average).
-
-    Attributes
-    ----------
-    amplitude_n : ndarray, shape (n_hits,)
-        Peak force of the first pulse (N).
-    double : ndarray of bool, shape (n_hits,)
-        Whether a second pulse follows.
-    delay_s : ndarray, shape (n_hits,)
-        Start of the second pulse after the first's (drawn for every hit; used where ``double``).
-    ratio : ndarray, shape (n_hits,)
-        Second pulse's peak over the first's (0 where not ``double``).
-    """
-
-    amplitude_n: np.ndarray
-    double: np.ndarray
-    delay_s: np.ndarray
-    ratio: np.ndarray
-
-
-def draw_impacts(settings: HammerSettings, rng: np.random.Generator, n_hits: int) -> Impacts:
-    """Draw the amplitude and any double hit of ``n_hits`` hits (uniform scatter, Bernoulli double hits)."""
-    s = settings
-    amplitude = s.peak_force_n * (1.0 + s.amplitude_scatter * rng.uniform(-1.0, 1.0, n_hits))
-    double = rng.random(n_hits) < s.double_hit_share
-    delay = rng.uniform(*s.double_hit_delay_s, n_hits)
-    ratio = np.where(double, rng.uniform(*s.double_hit_amplitude, n_hits), 0.0)
-    return Impacts(amplitude, double, delay, ratio)
-
-
-def impact_force(t: np.ndarray, contact_time_s: float, impacts: Impacts) -> np.ndarray:
-    """Samples of the force of each hit (N): half-sine pulses starting at t = 0 (and at ``delay_s``).
-
-    Parameters
-    ----------
-    t : ndarray, shape (n_t,)
-        Sampling instants (s) from the trigger.
-    contact_time_s : float
-    impacts : Impacts
-        ``n_hits`` hits.
-
-    Returns
-    -------
-    ndarray, shape (n_hits, n_t)
-    """
-
-    def half_sine(x: np.ndarray) -> np.ndarray:
-        inside = (x >= 0) & (x <= contact_time_s)
-        return np.where(inside, np.sin(np.pi * np.clip(x / contact_time_s, 0.0, 1.0)), 0.0)
-
-    second = half_sine(t[None, :] - impacts.delay_s[:, None]) * impacts.ratio[:, None]
-    return impacts.amplitude_n[:, None] * (half_sine(t)[None, :] + second)
 
 
 @dataclass(frozen=True, eq=False)

@@ -21,6 +21,7 @@ Pressure model
 For joint ``s`` and flank ``f`` (``"L"`` or ``"R"``)
 
     z_sf(ξ, η) = C_f(ξ, η − d_s) + a_v G_sf(ξ, η) + g_sf · (ξ, η) − Σ_k h_k exp(−|(ξ, η) − c_k|² / (2 r_k²))
+                 + a_r Q_sf(ξ, η)
     p_sf = p_ref · log(1 + exp(z_sf))                                                               [Pa]
 
 * ``C_f``, the **common shape** of flank side ``f``, is drawn once for all joints (manufacturing is
@@ -31,6 +32,10 @@ For joint ``s`` and flank ``f`` (``"L"`` or ``"R"``)
 * ``g_sf`` is the misalignment tilt: a pressure gradient drawn per joint; its axial component changes sign
   from L to R (a root yawed in its slot bears on opposite axial ends of its two flanks).
 * The Gaussian dips are local low-pressure islands (a Poisson number per flank).
+* ``Q_sf`` is the flank's roughness, a smooth random field with a correlation length of about a node's
+  spacing and amplitude ``a_r`` (0 on the ideal twin): it makes the contact's edge ragged and the film's
+  imprint grainy, as a ground surface's does. Misalignment (``g``), form error (``C``, ``G``, the islands) and
+  roughness are the three sources of a flank's pressure.
 * The softplus keeps the pressure positive and smooth.
 
 The smooth random fields are random-Fourier-feature samples of a unit-variance Gaussian process with a
@@ -104,6 +109,13 @@ class PressureParams:
     threshold_margin : float
         Relative pressure uncertainty of a reading (a film's noise, say), used to keep nodes away from the
         threshold; 0 picks the widest gap instead. Default 0.01.
+    roughness : float
+        Standard deviation (z units) of each flank's roughness field: the pressure scatter that the surface's
+        roughness adds on top of its form error, at about a node's spacing. Default 0 (no roughness: the
+        ideal twin); the realistic twin's (:meth:`of`) is 0.3, about 15 % of the pressure where z ≈ 2
+        (docs/twin.md).
+    roughness_length_scale : float
+        Correlation length of the roughness field (flank extents). Default 0.04.
     """
 
     fraction_range: tuple[float, float] = (0.30, 0.85)
@@ -123,12 +135,21 @@ class PressureParams:
     n_features: int = 64
     fraction_window: float = 0.05
     threshold_margin: float = 0.01
+    roughness: float = 0.0
+    roughness_length_scale: float = 0.04
+
+    @classmethod
+    def of(cls, realism: str) -> PressureParams:
+        """The generator of a realism setting (``"realistic"``: with roughness; ``"ideal"``: without)."""
+        if realism not in ("realistic", "ideal"):
+            raise ValueError(f"realism {realism!r}: expected 'realistic' or 'ideal'")
+        return cls(roughness=0.3) if realism == "realistic" else cls()
 
     def __post_init__(self) -> None:
         lo, hi = self.fraction_range
         if not 0.0 < lo <= hi < 1.0:
             raise ValueError(f"fraction_range must satisfy 0 < low ≤ high < 1, got {self.fraction_range}")
-        for name in ("p_ref", "core_width", "length_scale", "variation_length_scale"):
+        for name in ("p_ref", "core_width", "length_scale", "variation_length_scale", "roughness_length_scale"):
             v = getattr(self, name)
             if not (math.isfinite(v) and v > 0):
                 raise ValueError(f"{name} must be positive and finite, got {v!r}")
@@ -137,7 +158,7 @@ class PressureParams:
         if not (math.isfinite(self.threshold_margin) and self.threshold_margin >= 0):
             raise ValueError(f"threshold_margin must be ≥ 0 and finite, got {self.threshold_margin!r}")
         for name in ("core_amplitude", "core_offset", "shape_amplitude", "variation", "tilt_spread",
-                     "seating_spread", "islands"):
+                     "seating_spread", "islands", "roughness"):
             v = getattr(self, name)
             if not (math.isfinite(v) and v >= 0):
                 raise ValueError(f"{name} must be ≥ 0 and finite, got {v!r}")
@@ -270,6 +291,9 @@ class FlankField:
     island_centre : ndarray, shape (k, 2)
     island_radius : ndarray, shape (k,)
     island_depth : ndarray, shape (k,)
+    roughness : SmoothField or None
+        The flank's roughness (a short-correlation field; None: a smooth flank).
+    roughness_amplitude : float
     """
 
     common: CommonShape
@@ -280,12 +304,16 @@ class FlankField:
     island_centre: np.ndarray
     island_radius: np.ndarray
     island_depth: np.ndarray
+    roughness: SmoothField | None = None
+    roughness_amplitude: float = 0.0
 
     def __call__(self, xi: np.ndarray, eta: np.ndarray, lat: Lattice | None = None) -> np.ndarray:
         """z at (ξ, η); pass ``lat`` when (ξ, η) are ``lat.points()`` (faster, same values)."""
         seated = None if lat is None else lat.shifted(np.array([0.0, -self.seat]))
         z = self.common(xi, eta - self.seat, seated) + self.variation_amplitude * _smooth(self.variation, xi, eta, lat)
         z = z + self.tilt[0] * xi + self.tilt[1] * eta
+        if self.roughness is not None:
+            z = z + self.roughness_amplitude * _smooth(self.roughness, xi, eta, lat)
         for (cx, cy), r, h in zip(self.island_centre, self.island_radius, self.island_depth, strict=True):
             z = z - h * np.exp(-((xi - cx) ** 2 + (eta - cy) ** 2) / (2 * r * r))
         return z
@@ -526,6 +554,9 @@ def simulate_pressure(
                 island_centre=rng.uniform(-0.5, 0.5, (n_isl, 2)),
                 island_radius=rng.uniform(*p.island_radius, n_isl),
                 island_depth=rng.uniform(*p.island_depth, n_isl),
+                # drawn only where asked, so that the ideal generator's random stream stays as it was
+                roughness=SmoothField.draw(rng, p.n_features, p.roughness_length_scale) if p.roughness else None,
+                roughness_amplitude=p.roughness,
             )
             target = rng.uniform(*p.fraction_range)
             p_nodes = p.p_ref * _softplus(f(xi, eta))

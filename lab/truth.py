@@ -34,6 +34,7 @@ from rom.hex20 import assemble
 from rom.solver import solve_modes
 
 from . import specimen
+from .hammer import HammerSettings
 
 __all__ = [
     "REALISM",
@@ -92,6 +93,10 @@ class TruthParams:
         Mesh levels of the truth above the model's (capped at ``"fine"``); the contact grid is the same.
     damping_range : (float, float)
         Range of the modal damping ratios (log-uniform).
+    hammer : HammerSettings or None
+        The time-domain hammer test (:mod:`lab.hammer`: impulses, double hits, channel noise, windows, H1
+        and coherence over averages). None: exact FRFs with noise added in the frequency domain
+        (:func:`lab.rig.measure`), the ideal twin's test.
     """
 
     contact_stiffness_n_per_m3: float = 1e14
@@ -116,6 +121,7 @@ class TruthParams:
     modulus_temperature_coefficient_per_k: float = -2.6e-4
     mesh_refinement: int = 1
     damping_range: tuple[float, float] = (0.0005, 0.005)
+    hammer: HammerSettings | None = HammerSettings()  # noqa: RUF009  (frozen: a shared default is safe)
 
     @classmethod
     def ideal(cls) -> TruthParams:
@@ -124,7 +130,7 @@ class TruthParams:
         return cls(tangential_ratio=0.7, contact_spread=0.0, contact_pressure_exponent=0.0, fillet_fraction=0.25,
                    fillet_spread=0.0, modulus_offset_range=(0.0, 0.0), density_offset_range=(0.0, 0.0),
                    disk_sector_spread=0.0, bolt_mass_kg=0.0, reseat_edge_share=0.0, temperature_swing_k=0.0,
-                   mesh_refinement=0)
+                   mesh_refinement=0, hammer=None)
 
     @classmethod
     def of(cls, realism: str) -> TruthParams:
@@ -155,6 +161,8 @@ class TruthParams:
             raise ValueError(f"reseat_edge_share must lie in [0, 1], got {self.reseat_edge_share}")
         if not (isinstance(self.mesh_refinement, int) and 0 <= self.mesh_refinement <= 2):
             raise ValueError(f"mesh_refinement must be 0, 1 or 2 levels, got {self.mesh_refinement!r}")
+        if self.hammer is not None:
+            self.hammer.validate()
 
 
 @dataclass(frozen=True)

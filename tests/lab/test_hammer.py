@@ -238,3 +238,18 @@ def test_the_result_goes_to_uff_with_its_coherence(chain, tmp_path):
     write_frfs(path, res.frf, coherence=res.coherence)
     np.testing.assert_array_equal(read_uff(path).H, res.frf.H)
     np.testing.assert_array_equal(read_coherence(path), res.coherence)
+
+
+def test_the_tip_is_chosen_for_the_band():
+    """Above ``tip_rule / T_c`` the contact is shortened to put f_max · T_c at the rule: the half-sine's spectrum,
+    |cos(π f T_c)| / |1 − (2 f T_c)²| (Ewins 2000), is then 9.5 dB down at the band's top, not in a zero."""
+    s = HammerSettings()
+    assert s.for_band(2000.0) is s
+    hard = s.for_band(17_000.0)
+    hard.validate()
+    assert hard.contact_time_s * 17_000.0 == pytest.approx(1.0)
+    for f_max, t_c in ((17_000.0, hard.contact_time_s), (17_000.0, s.contact_time_s)):
+        x = f_max * t_c
+        db = 20 * np.log10(abs(np.cos(np.pi * x)) / abs(1 - (2 * x) ** 2))
+        assert (db > -10) == (t_c == hard.contact_time_s)
+    assert HammerSettings(tip_rule=None).for_band(17_000.0).contact_time_s == s.contact_time_s

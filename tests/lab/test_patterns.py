@@ -177,3 +177,56 @@ def test_bad_inputs_are_named():
         truth.pressure(3, "L", u, v)
     with pytest.raises(ValueError, match="flank"):
         truth.contact_threshold(1, "X")
+
+
+ROUGH = PressureParams.of("realistic")
+
+
+def test_ideal_generator_is_the_plain_one_and_roughness_is_off_there():
+    assert PressureParams.of("ideal") == PressureParams() and PressureParams().roughness == 0
+    u, v = academic_grid(7, 31)
+    a = simulate_pressure(u, v, 4, np.random.default_rng(5))
+    b = simulate_pressure(u, v, 4, np.random.default_rng(5), PressureParams.of("ideal"))
+    assert np.array_equal(a.L, b.L) and np.array_equal(a.R, b.R)
+    with pytest.raises(ValueError, match="realism"):
+        PressureParams.of("rough")
+
+
+def test_roughness_adds_a_field_of_its_stated_spread_and_short_correlation():
+    """z with roughness minus z without it is the roughness field: a unit-variance field times a_r, whose
+    correlation between points one correlation length apart is exp(-1/2) (the squared-exponential kernel)."""
+    from dataclasses import replace
+
+    u, v = academic_grid(7, 31)
+    truth = simulate_pressure(u, v, 6, np.random.default_rng(3), ROUGH)
+    xi, eta = np.meshgrid(np.linspace(-0.5, 0.5, 120), np.linspace(-0.5, 0.5, 120), indexing="ij")
+    diffs = []
+    for pair in truth.fields:
+        for f in pair:
+            diffs.append(f(xi, eta) - replace(f, roughness=None)(xi, eta))
+    d = np.stack(diffs)
+    # 12 independent 64-feature draws: the pooled spread is a_r within sampling error (~ 6 %)
+    assert abs(d.std() / ROUGH.roughness - 1) < 0.15
+    ell = ROUGH.roughness_length_scale
+    step = 1.0 / 119
+    lag = round(ell / step)
+    rho = np.mean(d[:, lag:, :] * d[:, :-lag, :]) / np.mean(d * d)
+    assert abs(rho - np.exp(-0.5 * (lag * step / ell) ** 2)) < 0.1
+
+
+@pytest.mark.parametrize("grid", GRIDS)
+def test_rough_patterns_stay_valid_in_their_range_and_agree_with_the_film_lattice(grid):
+    u, v = academic_grid(*grid)
+    lo, hi = ROUGH.fraction_range
+    n = grid[0] * grid[1]
+    for seed in range(4):
+        truth = simulate_pressure(u, v, 5, np.random.default_rng(seed), ROUGH)
+        f = truth.fractions
+        assert (f >= lo - 1.0 / n - 1e-12).all() and (f <= hi + 1.0 / n + 1e-12).all()
+        for p in truth.patterns():
+            assert isinstance(p, ContactPattern)
+    origin, row_step, col_step, shape = (u[0, 0], v[0, 0]), (1.0e-5, 0.0), (0.0, 1.0e-5), (30, 40)
+    r, c = np.arange(shape[0])[:, None], np.arange(shape[1])[None, :]
+    uu, vv = origin[0] + r * row_step[0] + c * col_step[0], origin[1] + r * row_step[1] + c * col_step[1]
+    fast = truth.pressure_on_lattice(2, "L", origin, row_step, col_step, shape)
+    np.testing.assert_allclose(fast, truth.pressure(2, "L", uu, vv), rtol=1e-10)
