@@ -15,6 +15,7 @@ import numpy as np
 from .errors import EMAError
 from .family import FamilyFit, fit_family, resolve_families, unexplained_lines
 from .frf import FRF_FORMS, FRFSet
+from .growth import grow_order
 from .lscf import lscf
 from .lsfd import _half_widths, _shapes, dominance, fit_quality, local_windows, modal_model, refine_poles, synthesize
 from .lsrf import lsrf
@@ -319,8 +320,8 @@ def fit(
         one mode of tests/ema/test_family.py's family at shape MAC 0.02).
     grow : bool
         The order from the data (single-band fits, no ``orders``, no ``picks``): double ``max_order`` while the
-        automatic selection fills more than 1/:data:`HEADROOM` of the modes the estimator's highest order holds
-        (:func:`_grown`).
+        automatic selection fills more than 1/:data:`ema.growth.HEADROOM` of the modes the estimator's highest
+        order holds and the diagram's upper orders still add modes (:func:`ema.growth.grow_order`).
 
     Returns
     -------
@@ -343,9 +344,12 @@ def fit(
     else:
         fit_band = _padded(frf, user_band, pad)
         poles = estimate_poles(frf, method, fit_band, max_order, orders, progress)
-        if grow and orders is None and picks is None:
-            poles = _grown(frf, poles, method, (fit_band, user_band), max_order, criteria, min_quality)
-    diagram = stabilize(poles, criteria)
+    grown = None
+    if n_bands <= 1 and grow and orders is None and picks is None:
+        grown = grow_order(lambda top, series: estimate_poles(frf, method, fit_band, top, series), frf, poles,
+                           method, user_band, max_order, criteria, min_quality)
+        poles = grown.poles
+    diagram = grown.diagram if grown is not None else stabilize(poles, criteria)
     inside = _band_mask(user_band)
     if picks is not None or frequencies_hz is not None:
         chosen = (select_picks(diagram, picks) if picks is not None
@@ -356,7 +360,7 @@ def fit(
         selection = _merge(chosen, extra)
         protect = np.isin(selection.pole, chosen.pole)
     else:
-        selection = select_auto(diagram, min_quality=min_quality)
+        selection = grown.selection if grown is not None else select_auto(diagram, min_quality=min_quality)
         protect = np.zeros(selection.n_modes, bool)
     with single_thread_blas():
         model, dom, dropped = _finish(frf, diagram, selection, min_dominance, refine, protect)
@@ -366,7 +370,7 @@ def fit(
             if refine and keep.any():
                 # the band's own refinement, on the data less the fitted modes of the padding: those modes
                 # stay in as fixed poles, and no misfit at the padded edges pulls on the band's modes
-                lam = _refine(_without(frf, model, ~keep), lam, user_band)
+                lam = _refine(_without(frf, model, ~keep), model.take(np.flatnonzero(keep)), user_band)
             model = modal_model(frf, lam, user_band, quality=model.quality[keep], method=diagram.method)
             dom = mode_dominance(frf, model, diagram.criteria.mac_min) if model.n_modes else np.zeros(0)
             dropped = [f for f in dropped if inside(np.array([f]))[0]]
@@ -639,7 +643,7 @@ def _finish(
             model, dom, kept = lsfd_model(model.poles[rest], model.quality[rest], kept[rest])
 
     def refined(model: ModalModel, kept: np.ndarray) -> tuple[ModalModel, np.ndarray, np.ndarray]:
-        return lsfd_model(_refine(frf, model.poles, diagram.band_hz), model.quality, kept)
+        return lsfd_model(_refine(frf, model, diagram.band_hz), model.quality, kept)
 
     model, dom, kept = lsfd_model(selection.pole, selection.quality, np.asarray(protect, bool))
     # each pass drops at least one mode, so this ends; refinement moves poles, so judge again after it
@@ -651,35 +655,6 @@ def _finish(
         model, dom, kept = drop(model, dom, kept)
         if not refine:
             return model, dom, dropped
-
-
-#: The order grows until its highest order holds this many times the modes selected (LSCF: p·n_inputs/2 modes
-#: at order p; complex LSRF: n at order n). LSCF at order 40 (20 modes) missed modes of the 10-mode close-modes
-#: truth on four seeds of six, at 60 on none (tests/ema/test_auto_order.py); the complex LSRF found the 29 modes of
-#: tests/ema/test_band_fitting.py at order 60.
-HEADROOM = {"lscf": 3.0, "lsrf": 2.0}
-#: The order grows at most this many doublings above ``max_order``.
-MAX_DOUBLINGS = 3
-
-
-def _grown(frf: FRFSet, poles: PoleSet, method: str, bands: tuple, max_order: int,
-           criteria: StabilityCriteria | None, min_quality: float) -> PoleSet:
-    """The poles at ``max_order`` doubled while the selection in the user's band needs more room (see ``grow``)."""
-    fit_band, user_band = bands
-    order = max_order
-    per_order = frf.n_inputs / 2 if method == "lscf" else 1.0
-    for _ in range(MAX_DOUBLINGS):
-        sel = select_auto(stabilize(poles, criteria), min_quality=min_quality)
-        n = int(np.count_nonzero(_band_mask(user_band)(sel.frequencies_hz)))
-        if n * HEADROOM[method] <= order * per_order:
-            break
-        try:
-            poles = estimate_poles(frf, method, fit_band, 2 * order)
-        except EMAError:  # more unknowns than the lines support: the order stays
-            break
-        order *= 2
-        log.info("%s: %d modes selected, the order grows to %d", method, n, order)
-    return poles
 
 
 def _split(frf: FRFSet, model: ModalModel, diagram: StabilizationDiagram, band: tuple[float, float],
@@ -708,33 +683,42 @@ class _Chosen(NamedTuple):
     quality: np.ndarray
 
 
-def _refine(frf: FRFSet, poles: np.ndarray, band: tuple[float, float]) -> np.ndarray:
-    """Refine poles over the whole band; where that is refused, refine each mode over a window around it.
+def _refine(frf: FRFSet, model: ModalModel, band: tuple[float, float]) -> np.ndarray:
+    """Refine a model's poles over the whole band; where that is refused, refine each mode in a window around it.
 
     :func:`ema.lsfd.refine_poles` keeps all starting poles when any of them would move by more than 1 %
-    (typically a weak pole of the band's edges that the data hardly determine), which would leave every
-    mode at the estimator's accuracy. The fallback refines each mode r over its local window
-    (:func:`ema.lsfd.local_windows`: ``f_r +- W_r``, ``W_r = max(10 zeta_r f_r, 20 lines)``, its resonance
-    down to about -20 dB, where the residual terms absorb what lies outside), with the modes within
-    ``2 W_r`` as poles, and keeps the refined pole of r where that refinement is accepted.
+    (typically a weak pole of the band's edges that the data hardly determine) or when the band's problem is
+    beyond its size, which would leave every mode at the estimator's accuracy. The fallback refines each mode r
+    over its local window (:func:`ema.lsfd.local_windows`: ``f_r +- W_r``, ``W_r = max(10 zeta_r f_r, 20 lines)``,
+    its resonance down to about -20 dB, where the residual terms absorb what lies outside) with the modes inside
+    the window as poles, on the data less the model's terms of the other modes (:func:`_without`, the model's
+    residues), and keeps the refined pole of r where that refinement is accepted; the 1 % rule judges r alone.
+    Why not the modes within ``2 W_r`` as free poles, as before: a broad mode's window then held up to 21 poles
+    (``benchmarks/ema.py``), each refinement cost 50-70 model evaluations, and a weak neighbour that moved by
+    more than 1 % had the refinement of r rejected (15 of 30 windows with LSCF).
 
     Returns
     -------
     ndarray of complex128, shape (n_modes,)
     """
+    poles = model.poles
     lam = refine_poles(frf, poles, band)
     if poles.size < 2 or not np.array_equal(lam, poles):
         return lam
     out = poles.copy()
+    f, halves, _ = _half_widths(poles, frf, band)
     for r, item in enumerate(local_windows(poles, frf, band)):
         if item is None:
             continue  # too few lines for the poles and residual terms of the window
         window, near = item
+        inside = near[np.abs(f[near] - f[r]) <= halves[r]]
         try:
-            local = refine_poles(frf, poles[near], window)
+            data = frf.band(*window)
+            local = refine_poles(_without(data, model, ~np.isin(np.arange(f.size), inside)), poles[inside], window,
+                                 check=np.searchsorted(inside, [r]))
         except ValueError:  # a window the LSFD refuses (e.g. non-finite lines): keep the pole
             continue
-        out[r] = local[np.searchsorted(near, r)]
+        out[r] = local[np.searchsorted(inside, r)]
     return out
 
 
