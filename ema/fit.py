@@ -642,8 +642,12 @@ def _finish(
             rest = np.delete(np.arange(model.n_modes), k)
             model, dom, kept = lsfd_model(model.poles[rest], model.quality[rest], kept[rest])
 
+    last: list = [np.zeros(0, complex), 0]  # the poles of the last refinement, and how many were dropped then
+
     def refined(model: ModalModel, kept: np.ndarray) -> tuple[ModalModel, np.ndarray, np.ndarray]:
-        return lsfd_model(_refine(frf, model, diagram.band_hz), model.quality, kept)
+        lam = _refine(frf, model, diagram.band_hz, settled=(last[0], dropped[last[1]:]))
+        last[:] = [lam, len(dropped)]
+        return lsfd_model(lam, model.quality, kept)
 
     model, dom, kept = lsfd_model(selection.pole, selection.quality, np.asarray(protect, bool))
     # each pass drops at least one mode, so this ends; refinement moves poles, so judge again after it
@@ -683,7 +687,8 @@ class _Chosen(NamedTuple):
     quality: np.ndarray
 
 
-def _refine(frf: FRFSet, model: ModalModel, band: tuple[float, float]) -> np.ndarray:
+def _refine(frf: FRFSet, model: ModalModel, band: tuple[float, float],
+            settled: tuple[np.ndarray, list[float]] = (np.zeros(0, complex), [])) -> np.ndarray:
     """Refine a model's poles over the whole band; where that is refused, refine each mode in a window around it.
 
     :func:`ema.lsfd.refine_poles` keeps all starting poles when any of them would move by more than 1 %
@@ -696,6 +701,10 @@ def _refine(frf: FRFSet, model: ModalModel, band: tuple[float, float]) -> np.nda
     Why not the modes within ``2 W_r`` as free poles, as before: a broad mode's window then held up to 21 poles
     (``benchmarks/ema.py``), each refinement cost 50-70 model evaluations, and a weak neighbour that moved by
     more than 1 % had the refinement of r rejected (15 of 30 windows with LSCF).
+
+    ``settled``: the poles of an earlier refinement and the frequencies (Hz) of the modes dropped since. A mode
+    whose pole is one of those keeps it unless a dropped mode lay within ``2 W_r``: its window's data and poles
+    are the same but for the far modes' residues (:func:`_finish` refines again after each drop).
 
     Returns
     -------
@@ -711,6 +720,9 @@ def _refine(frf: FRFSet, model: ModalModel, band: tuple[float, float]) -> np.nda
         if item is None:
             continue  # too few lines for the poles and residual terms of the window
         window, near = item
+        if np.any(np.isclose(poles[r], settled[0], rtol=1e-12, atol=0)) and not np.any(
+                np.abs(np.asarray(settled[1]) - f[r]) <= 2 * halves[r]):
+            continue  # refined before, and no mode near it dropped since
         inside = near[np.abs(f[near] - f[r]) <= halves[r]]
         try:
             data = frf.band(*window)
