@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: run test lint bench results bench-results clean
+.PHONY: run test lint bench results bench-results twin-tables clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -41,6 +41,21 @@ bench-results: $(STAMP)
 	$(BIN)/python benchmarks/dataset.py --json docs/results/bench_dataset.json
 	$(BIN)/python benchmarks/posterior.py --json docs/results/bench_posterior.json
 	$(MAKE) results
+
+# docs/results/twin_effects.md (the model against the bundled tests, before and after calibration) and
+# docs/results/twin_compare.md (every headline figure, ideal twin against realistic, same code): about 20 min.
+IDEAL := out/twin-ideal
+twin-tables: $(STAMP)
+	test -f out/academic/summary.json || $(BIN)/bladetwin run
+	$(BIN)/bladetwin run --no-calibrate --out out/academic-uncalibrated --quiet
+	test -f $(IDEAL)/campaign/campaign.toml || $(BIN)/bladetwin lab simulate --realism ideal --seed 0 --blades 18 \
+		--grid 7x31 --level default --known 3,7,10,14,17 --name academic-ideal --out $(IDEAL)/campaign
+	$(BIN)/bladetwin run $(IDEAL)/campaign --out $(IDEAL)/run --quiet
+	mkdir -p docs/results
+	$(BIN)/python -m bladetwin.twin_table effects out/academic/summary.json \
+		out/academic-uncalibrated/summary.json measurements/academic/truth/truth.json > docs/results/twin_effects.md
+	$(BIN)/python -m bladetwin.twin_table compare ideal=$(IDEAL)/run/summary.json \
+		realistic=out/academic/summary.json > docs/results/twin_compare.md
 
 clean:
 	rm -rf $(VENV) .pytest_cache out

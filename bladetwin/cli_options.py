@@ -6,6 +6,7 @@ the store for the same keys, so it finds that run's results.
 
 from __future__ import annotations
 
+import argparse
 from pathlib import Path
 
 from .stages import RunOptions
@@ -30,10 +31,10 @@ def add_stage_options(p) -> None:
     p.add_argument("--step", type=float, default=d.step_pct, help="δ grid step in %% (default: %(default)s)")
     p.add_argument("--features", type=int, default=d.n_features, help="feature modes of the k-NN "
                    "(default: %(default)s)")
-    p.add_argument("--calibrate", action="store_true",
+    p.add_argument("--calibrate", action=argparse.BooleanOptionalAction, default=d.calibrate,
                    help="calibrate the FE model's E and ρ on the free-disk and free-blade tests and the manifest's "
-                        "[masses] before any reduction (paper §5; off by default until the bundled campaign is "
-                        "regenerated)")
+                        "[masses] before any reduction (paper §5; default: on; --no-calibrate keeps the model's "
+                        "handbook materials)")
     p.add_argument("--no-bias", action="store_true", help="don't remove the ROM's bias estimated on the filmed joints")
     p.add_argument("--refine", type=int, default=d.refine, metavar="N",
                    help="refine each unfilmed joint's k-NN pattern by a compass search of at most N disk-one-blade "

@@ -131,8 +131,9 @@ def contact_rows(docs: dict) -> list[Row]:
 def rom_rows(docs: dict) -> list[Row]:
     """Cases A, B, C with the paper's ROM and the updated one (``summary.json`` → ``rom``), side by side."""
     rows = []
-    for case in ("A", "B", "C"):
-        row = _row(f"Case {case}", docs, [("summary.json", f"rom.{kind}.cases.{case}.{key}", spec)
+    for case in ("A", "B", "B_baseline", "C"):
+        label = "Case B, baseline pattern (control)" if case == "B_baseline" else f"Case {case}"
+        row = _row(label, docs, [("summary.json", f"rom.{kind}.cases.{case}.{key}", spec)
                                           for kind in ("paper", "updated")
                                           for key, spec in (("mean_abs_df_pct", ".3f"), ("mean_mac", ".3f"),
                                                             ("n_modes", "d"))])

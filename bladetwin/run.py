@@ -84,50 +84,80 @@ def _timings(seconds: dict[str, float], prefix: str) -> dict[str, float]:
     return out
 
 
-def _calibrated(c: Campaign, p: Pipeline, nominal: Source, store: Store, opts: RunOptions, say,
-                calibrated: dict) -> Source:
-    """The campaign's model calibrated on its tests (paper §5): the calibration node runs first, on its own
-    (the blade and disk EMA it needs are stored for the main run), then the model is scaled here, before the
-    main run's workers fork, so that they inherit it (a model is never pickled to a worker)."""
-    from rom.calibration import apply_calibration
+def _calibration(c: Campaign, p: Pipeline, nominal: Source, store: Store, opts: RunOptions, say,
+                 problems: list[str]):
+    """The campaign's calibration (paper §5): its node runs first, on its own runner (the blade and disk EMA it
+    needs are stored for the main run); the store's problems it met go to ``problems``, for the summary."""
+    src = campaign_sources(c, nominal, store, opts)
+    runner = Runner(store, opts.workers, say)
+    cal = runner.run(p, ["calibration"], src)["calibration"]
+    problems.extend(runner.warnings_of())
+    return cal
+
+
+def _calibrated(nominal: Source, cals: list) -> tuple[Source, str | None]:
+    """The model calibrated on its campaigns' tests, and a note where several campaigns pooled theirs.
+
+    Re-assemblies of one disk test the same disk and blades: their calibrations are pooled
+    (:func:`rom.calibration.pool_calibrations`) into one model, which every campaign's reduced models share.
+    The model is scaled here, before the main run's workers fork, so that they inherit it (a model is never
+    pickled to a worker).
+    """
+    from rom.calibration import apply_calibration, pool_calibrations
 
     from .stages.models import model_key
 
-    src = campaign_sources(c, nominal, store, opts)
-    res = Runner(store, opts.workers, say).run(p, ["calibration"], src)
-    cal = res["calibration"]
-    if cal.disk is None and cal.blade is None:
-        return nominal
-    key = (nominal.key, repr(cal.to_dict()))
-    if key not in calibrated:
-        bd = apply_calibration(nominal.value, cal.disk, cal.blade)
-        calibrated[key] = Source(bd, model_key(bd))
-    return calibrated[key]
+    disk = [c.disk for c in cals if c.disk is not None]
+    blade = [c.blade for c in cals if c.blade is not None]
+    if not disk and not blade:
+        return nominal, None
+    disk_cal = pool_calibrations(disk) if disk else None
+    blade_cal = pool_calibrations(blade) if blade else None
+    bd = apply_calibration(nominal.value, disk_cal, blade_cal)
+    note = None
+    if len(cals) > 1:
+        parts = [f"{x.component} E {100 * (x.E_scale - 1):+.2f} %, ρ {100 * (x.rho_scale - 1):+.2f} %"
+                 for x in (disk_cal, blade_cal) if x is not None]
+        note = (f"The {len(cals)} campaigns of this disk share one calibrated model, the geometric mean of their "
+                f"calibrations ({'; '.join(parts)}); each campaign's own is in its summary.json:calibration.")
+    return Source(bd, model_key(bd)), note
 
 
-def _graph(campaigns: list[Campaign], opts: RunOptions, store: Store, say) -> tuple[Pipeline, dict, list[str]]:
+def _graph(campaigns: list[Campaign], opts: RunOptions, store: Store, say
+           ) -> tuple[Pipeline, dict, list[str], list[list[str]]]:
+    """The graph of every campaign, its sources, the campaigns' prefixes, and each campaign's warnings so far."""
     from .stages.models import model_key
 
     pipeline, sources, prefixes = Pipeline(), {}, _prefixes(campaigns)
     models: dict[str, Source] = {}
-    calibrated: dict = {}
-    for c, pre in zip(campaigns, prefixes, strict=True):
+    spec_of, pipes = [], []
+    for c in campaigns:
         spec = repr(sorted(c.model.items())) + (str(c.root) if c.model.get("family") == "imported" else "")
         if spec not in models:
             say(f"FE model of {c.name} (its hash keys the reduced models)")
             bd = load_model(c)
             models[spec] = Source(bd, model_key(bd))
-        p = campaign_pipeline(c, opts)
-        model = models[spec]
-        if opts.calibrate:
+        spec_of.append(spec)
+        pipes.append(campaign_pipeline(c, opts))
+    used, notes = dict(models), [[] for _ in campaigns]
+    if opts.calibrate:
+        cals: dict[str, list] = {}
+        for c, p, spec in zip(campaigns, pipes, spec_of, strict=True):
             say(f"calibrating the FE model's materials on the tests of {c.name} (paper §5)")
-            model = _calibrated(c, p, models[spec], store, opts, say, calibrated)
+            cals.setdefault(spec, []).append(_calibration(c, p, models[spec], store, opts, say,
+                                                          notes[campaigns.index(c)]))
+        for spec, found in cals.items():
+            used[spec], note = _calibrated(models[spec], found)
+            for k, s in enumerate(spec_of):
+                if note and s == spec:
+                    notes[k].append(note)
+    for c, p, spec, pre in zip(campaigns, pipes, spec_of, prefixes, strict=True):
         p = p.prefixed(pre.rstrip("/")) if pre else p
         for n in p:
             pipeline.add(n)
-        src = campaign_sources(c, model, store, opts, nominal=models[spec])
+        src = campaign_sources(c, used[spec], store, opts, nominal=models[spec])
         sources.update({pre + k: v for k, v in src.items()})
-    return pipeline, sources, prefixes
+    return pipeline, sources, prefixes, notes
 
 
 def run_campaigns(campaigns: Iterable[Campaign], opts: RunOptions | None = None,
@@ -144,7 +174,8 @@ def run_campaigns(campaigns: Iterable[Campaign], opts: RunOptions | None = None,
         with recording() as texts:
             check_campaign(c)
         checked.append(runner.emit(unique(texts)))
-    pipeline, sources, prefixes = _graph(campaigns, opts, store, say)
+    pipeline, sources, prefixes, pooled = _graph(campaigns, opts, store, say)
+    checked = [[*found, *runner.emit(note)] for found, note in zip(checked, pooled, strict=True)]
     say(f"running {len(pipeline)} stage nodes on {opts.workers} worker(s); the store is {store.root}")
     res = runner.run(pipeline, pipeline.names(), sources)
     out = []
@@ -167,7 +198,7 @@ def run_nodes(campaign: Campaign, targets: list[str], opts: RunOptions | None = 
     opts = RunOptions() if opts is None else opts
     check_campaign(campaign)
     store = Store(opts.cache_dir)
-    pipeline, sources, _ = _graph([campaign], opts, store, say)
+    pipeline, sources, _, _ = _graph([campaign], opts, store, say)
     runner = Runner(store, opts.workers, say)
     return runner.run(pipeline, targets, sources), runner
 

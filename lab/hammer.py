@@ -77,8 +77,8 @@ class HammerSettings:
         nominal peak force (the channel's range is set to the peak).
     response_noise : float
         Response-channel (laser) noise: Gaussian, white at the analyser's rate, standard deviation this
-        fraction of the channel's RMS over the record, taken on the first hit of each reference (as an
-        analyser's range is set on a trial hit).
+        fraction of the RMS of the channel's elastic response over the record, taken on the first hit of each
+        reference (as an analyser's range is set on a trial hit, after AC coupling removed the rigid-body drift).
     n_averages : int
         Hits averaged per reference (about 5 is common practice for impact tests; Avitabile 2017).
     force_window : float or None
@@ -431,6 +431,12 @@ def hammer_test(
                             win["force_an"], grid)[0]
         Gxx[j] = np.sum(np.abs(F) ** 2, axis=0)
         spectra, gram = _modal_spectra(filters, rigid, force, win["resp_sim"], grid)
+        if rigid:
+            # The range is set on the elastic response: a free specimen's rigid-body drift lies below any band
+            # and the analyser's AC coupling takes it out first (else its constant velocity, the bulk of the
+            # record's RMS, would bury the weaker modes under a noise floor no 24-bit analyser has).
+            gram = gram.copy()
+            gram[-1, :] = gram[:, -1] = 0.0
         # modal participation of each column at each output for this hammer DOF
         C = phi[outputs] * phi[i][None, :]
         if rigid:

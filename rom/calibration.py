@@ -10,11 +10,13 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import numpy as np
+
 from .component import Component
 from .solver import solve_modes
 
 __all__ = ["Calibration", "calibrate_modulus", "calibrate_bladed_disk", "MaterialCalibration", "component_mass",
-           "calibrate_material", "scaled_component", "apply_calibration"]
+           "calibrate_material", "pool_calibrations", "scaled_component", "apply_calibration"]
 
 
 @dataclass(frozen=True)
@@ -189,6 +191,30 @@ def scaled_component(component: Component, cal: MaterialCalibration) -> Componen
     M = component.M if cal.rho_scale == 1 else component.M * cal.rho_scale
     return Component(component.name, component.K * cal.E_scale, M, component.node_ids, component.coords,
                      dict(component.node_sets), meta, component.elements)
+
+
+def pool_calibrations(cals: list[MaterialCalibration]) -> MaterialCalibration:
+    """One calibration of a component from several campaigns' calibrations of it (re-assemblies of one disk).
+
+    E and ρ are the geometric means of the campaigns' (so the pooled eigenvalue scale E/ρ is theirs); the
+    target is √ of the mean squared target, the weighed mass the mean where every campaign weighed it.
+    """
+    if not cals:
+        raise ValueError("pool_calibrations: expected at least one calibration")
+    first = cals[0]
+    if len(cals) == 1:
+        return first
+    if any(c.component != first.component or c.E_before != first.E_before or c.rho_before != first.rho_before
+           for c in cals):
+        raise ValueError(f"pool_calibrations: the calibrations are of different components or models "
+                         f"({sorted({c.component for c in cals})})")
+    gmean = lambda xs: float(np.exp(np.mean(np.log(xs))))  # noqa: E731
+    masses = [c.mass_kg for c in cals]
+    weighed = all(m is not None for m in masses)
+    return MaterialCalibration(
+        first.component, float(np.sqrt(np.mean([c.target_hz**2 for c in cals]))), first.model_hz, first.E_before,
+        gmean([c.E_after for c in cals]), first.rho_before, gmean([c.rho_after for c in cals]),
+        "masses" if weighed else "nominal", float(np.mean(masses)) if weighed else None, first.model_mass_kg)
 
 
 def apply_calibration(bd, disk: MaterialCalibration | None, blade: MaterialCalibration | None):

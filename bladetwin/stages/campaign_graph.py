@@ -66,8 +66,8 @@ class RunOptions:
         PCA components per flank of the posterior's prior; default: enough for 95 % of the films' variance.
     calibrate : bool
         Calibrate E and ρ of the disk and the blades on the tests before any reduction (paper §5, Table 4;
-        :mod:`bladetwin.stages.calibration`; ``bladetwin run --calibrate``); ``False`` (default, until the bundled
-        campaign is regenerated) keeps the model's materials.
+        :mod:`bladetwin.stages.calibration`); ``True`` by default; ``False`` (``bladetwin run --no-calibrate``)
+        keeps the model's materials.
     rom : {"updated", "paper"}
         ``"updated"`` (default) also calibrates the ROM beyond Eq. 19 on the disk–one-blade tests (contact
         stiffness, in-situ blade corrections: :mod:`identify.rom_update`) and validates it beside the paper's;
@@ -89,7 +89,7 @@ class RunOptions:
     method: str = "both"
     n_components: int | None = None
     rom: str = "updated"
-    calibrate: bool = False
+    calibrate: bool = True
 
     def __post_init__(self) -> None:
         if self.method not in METHODS:
@@ -232,7 +232,8 @@ def _identify_nodes(p: Pipeline, campaign, opts: RunOptions) -> None:
                label="bias on the filmed joints"))
     p.add(Node("predictions", knn.predict, {"dataset": "dataset", "features": "features", "delta_all": "delta_all",
                                             "known": "known"},
-               {"n_delta_modes": opts.n_delta_modes, "bias": opts.bias, "step_pct": opts.step_pct}, where="parent"))
+               {"n_delta_modes": opts.n_delta_modes, "bias": opts.bias, "step_pct": opts.step_pct}, where="parent",
+               version=2))
     unfilmed = [t.index for t in campaign.of_type("d1b") if t.index not in campaign.known_joints]
     for k, name in enumerate(identify_inputs(campaign, opts)):
         refined = {}
@@ -242,7 +243,7 @@ def _identify_nodes(p: Pipeline, campaign, opts: RunOptions) -> None:
                 {**rom, "dataset": "dataset", "films": "films", "synthetic": "synthetic",
                  "predictions": "predictions", "delta_all": "delta_all", "store": "@store"},
                 {"input": name, "joint": int(j), "max_solves": int(opts.refine)}, priority=40 - 10 * k,
-                label=f"joint {j} refined ({name} input)")).name
+                label=f"joint {j} refined ({name} input)", version=2)).name
         p.add(Node(f"patterns/{name}", refinement.joint_patterns, {"predictions": "predictions", "known": "known",
                                                                   "baseline": "baseline", **refined},
                    {"input": name, "n_blades": campaign.n_blades}, where="parent", stored=False, content_key=True))

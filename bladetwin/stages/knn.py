@@ -40,7 +40,9 @@ class Predictions:
     step1 : identify.validation.GridError
         Step 1's δ grid error on the experimental input (Eq. 40).
     missing : list of int
-        Joints without every feature mode in their EMA (they get the baseline pattern).
+        Joints whose EMA found none of the feature modes (they get the baseline pattern).
+    partial : dict joint → list of int
+        Joints whose EMA missed some feature modes (1-based tracked modes): they are matched on the others.
     """
 
     joints: np.ndarray
@@ -50,19 +52,34 @@ class Predictions:
     tolerance_pct: dict
     step1: GridError
     missing: list
+    partial: dict
 
 
 def _query(knn: TwoStepKNN, ds: Dataset, joints, deltas, features: np.ndarray) -> tuple[dict, dict, np.ndarray]:
-    ok = np.isfinite(features).all(axis=1)
+    """Each joint's nearest pair, on the feature modes its EMA found.
+
+    A joint whose EMA missed some feature modes (NaN) is matched on the others: a k-NN with those features'
+    weights set to 0 (Eq. 33 then ignores them). A joint that found none gets no pair (the baseline).
+    """
+    found = np.isfinite(features)
     pats, labels = {}, {}
-    match = knn.match(query_matrix(deltas, np.where(np.isfinite(features), features, 0.0)))
-    beyond = match.beyond / np.where(ok[:, None], features, 1.0)
-    for k, j in enumerate(joints):
-        if ok[k]:
-            iL, iR = (int(x) for x in match.label[k, 0])
-            pats[int(j)] = ContactPattern(ds.patterns_L[iL], ds.patterns_R[iR])
-            labels[int(j)] = (iL, iR, float(match.distance[k, 0]), beyond[k], None)
-    return pats, labels, match.delta
+    delta = np.zeros(deltas.shape)
+    beyond = np.zeros(features.shape)
+    rows_of: dict[tuple, list[int]] = {}
+    for k, mask in enumerate(found):
+        if mask.any():
+            rows_of.setdefault(tuple(mask), []).append(k)
+    for mask, rows in rows_of.items():
+        est = knn if all(mask) else TwoStepKNN.from_dataset(ds, weights=knn.weights_ * np.array(mask, float))
+        match = est.match(query_matrix(deltas[rows], np.where(found[rows], features[rows], 0.0)))
+        delta[rows] = match.delta
+        beyond[rows] = np.where(found[rows], match.beyond / np.where(found[rows], features[rows], 1.0), 0.0)
+        for r, k in enumerate(rows):
+            iL, iR = (int(x) for x in match.label[r, 0])
+            j = int(joints[k])
+            pats[j] = ContactPattern(ds.patterns_L[iL], ds.patterns_R[iR])
+            labels[j] = (iL, iR, float(match.distance[r, 0]), beyond[k], None)
+    return pats, labels, delta
 
 
 def _targets(f: Features, feat: list[int], bias: bool) -> tuple[dict, dict]:
@@ -89,9 +106,12 @@ def predict(dataset: Dataset, features: Features, delta_all: np.ndarray, known: 
     joints = features.joints
     deltas = delta_all[joints - 1, :n_delta_modes]
     targets, tol = _targets(features, feat, bias)
-    missing = joints[~np.isfinite(targets["experimental"]).all(axis=1)].tolist()
+    found = np.isfinite(targets["experimental"])
+    missing = joints[~found.any(axis=1)].tolist()
+    partial = {int(j): [feat[m] + 1 for m in np.flatnonzero(~row)] for j, row in zip(joints, found, strict=True)
+               if row.any() and not row.all()}
     if len(missing) == len(joints):
-        raise IdentifyError(f"no disk-one-blade test has all feature modes {[m + 1 for m in feat]} within "
+        raise IdentifyError(f"no disk-one-blade test has any of the feature modes {[m + 1 for m in feat]} within "
                             f"{100 * MATCH_WINDOW:.0f} % of the dataset's")
     pats, labels, step1_delta = {}, {}, None
     for name, t in targets.items():
@@ -107,4 +127,4 @@ def predict(dataset: Dataset, features: Features, delta_all: np.ndarray, known: 
     if not bias:
         pats["experimental_no_bias"], labels["experimental_no_bias"] = pats["experimental"], labels["experimental"]
     step1 = grid_error(step1_delta, deltas, step_pct / 100)
-    return Predictions(joints, pats, labels, targets, tol, step1, missing)
+    return Predictions(joints, pats, labels, targets, tol, step1, missing, partial)

@@ -36,7 +36,10 @@ def refine_joint(disk, blade, dataset: Dataset, films, synthetic: SyntheticPatte
     memo = store.memo("refine-solves-" + hash_inputs(
         "refine-solves", model_key(tracker.disk, tracker.blade, tracker.formulation), tracker.shapes,
         tracker.weight, int(tracker.n_extra))[:32])
-    return refine_pattern(tracker, *family_samplers(films), row, list(dataset.feature_modes),
+    # a feature mode the joint's EMA missed (NaN) is left out of its search
+    found = np.isfinite(row)
+    feats = [m for m, ok in zip(dataset.feature_modes, found, strict=True) if ok]
+    return refine_pattern(tracker, *family_samplers(films), row[found], feats,
                           synthetic.gray_L[iL], synthetic.gray_R[iR], delta=delta_all[joint - 1],
                           max_solves=max_solves, tol_pct=predictions.tolerance_pct[input], memo=memo)
 

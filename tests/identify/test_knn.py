@@ -236,3 +236,30 @@ def test_user_errors_are_one_line_identify_errors():
 @parametrize_with_checks([TwoStepKNN(n_delta_modes=1), TwoStepKNN(n_delta_modes=0, weights=None, normalize=None)])
 def test_sklearn_estimator_contract(estimator, check):
     check(estimator)
+
+
+def test_a_joint_missing_a_feature_mode_is_matched_on_the_others():
+    """``bladetwin run``'s k-NN node: a joint whose EMA missed feature mode 2 (NaN) gets the pair that the two
+    steps of the equations, computed by brute force on features 1 and 3 alone, give; one that found no feature
+    gets none (the baseline); one that found all is unchanged."""
+    from bladetwin.stages.knn import _query
+
+    D, F, y = synthetic(seed=3)
+    w = np.array([1.0, 2.0, 0.5])
+    n = int(y.max()) + 1
+    ones = np.ones((n, 3, 3), bool)
+    ds = Dataset(D, y, F, ones, ones, (0, 1, 2), w, np.unique(D[:, 0]))
+    knn = TwoStepKNN.from_dataset(ds)
+    Dq, Fq = queries(D, F, n=12, seed=4)
+    Fq[::3, 1] = np.nan
+    Fq[1] = np.nan
+    pats, labels, _ = _query(knn, ds, np.arange(1, 13), Dq, Fq)
+    assert 2 not in labels and set(labels) == set(range(1, 13)) - {2}
+    keep = [0, 2]
+    idx, _, _ = brute_two_step(D, F[:, keep], y, w[keep], Dq[::3], Fq[::3][:, keep], 1, "subset")
+    for r, k in enumerate(range(0, 12, 3)):
+        assert labels[k + 1][:2] == tuple(y[idx[r, 0]])
+    full = [k for k in range(12) if k % 3 and k != 1]
+    idx, _, _ = brute_two_step(D, F, y, w, Dq[full], Fq[full], 1, "subset")
+    for r, k in enumerate(full):
+        assert labels[k + 1][:2] == tuple(y[idx[r, 0]])

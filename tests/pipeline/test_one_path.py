@@ -147,10 +147,16 @@ def test_several_campaigns_of_one_disk_share_its_models_and_get_an_index(camp, t
     b = cells.cells[cells.cells.index("Case B") + 1:][:4]  # |Δf| and MAC of each campaign, from its summary
     expect = [summaries[k]["cases"]["B"][f] for k in (0, 1) for f in ("mean_abs_df_pct", "mean_mac")]
     assert np.allclose([float(x) for x in b], expect, rtol=5e-3)
-    # each campaign alone gives what it gave beside the other
+    # one disk, one calibrated model: the two campaigns' calibrations are pooled (and said so); each summary keeps
+    # its campaign's own calibration, the one it gets alone
+    for s in summaries:
+        assert any("share one calibrated model" in w for w in s["warnings"])
+        # on the ideal twin the identification beats the films' majority against the truth (Case A)
+        assert s["cases"]["A"]["mean_abs_df_pct"] < s["cases"]["baseline"]["A"]["mean_abs_df_pct"]
     _run(camp, [camp / "second"], tmp_path / "alone", capsys)
     alone = json.loads((tmp_path / "alone" / "summary.json").read_text())
-    assert alone["cases"] == summaries[1]["cases"] and alone["joints"] == summaries[1]["joints"]
+    assert alone["calibration"] == summaries[1]["calibration"]
+    assert not any("share one calibrated model" in w for w in alone["warnings"])
 
 
 def test_scheduler_sends_each_campaign_graph_to_a_dask_cluster(camp, tmp_path, capsys):

@@ -40,3 +40,21 @@ def test_bad_values_are_refused_naming_them(kw, needle):
     args = {"model_hz": 1000.0, "target_hz": 1010.0, "mass_kg": None} | kw
     with pytest.raises(ValueError, match=needle):
         calibrate_material("disk", 200e9, 7800.0, args["model_hz"], args["target_hz"], 1.7, args["mass_kg"])
+
+
+def test_pooled_calibrations_of_re_assemblies_put_the_mean_eigenvalue_on_the_mean_target():
+    """Two campaigns of one blade set: the pooled E/ρ is the geometric mean of theirs, so the model's f² lands on
+    the geometric mean of the two targets' f² (f² ∝ E/ρ); one campaign is its own pool."""
+    from rom.calibration import pool_calibrations
+
+    a = calibrate_material("blade", 210e9, 7850.0, 700.0, 690.0, 0.033, 0.0331)
+    b = calibrate_material("blade", 210e9, 7850.0, 700.0, 694.0, 0.033, 0.0329)
+    p = pool_calibrations([a, b])
+    f2 = 700.0**2 * (p.E_scale / p.rho_scale)
+    assert f2 == pytest.approx(np.sqrt(690.0**2 * 694.0**2), rel=1e-12)
+    assert p.rho_after == pytest.approx(np.sqrt(a.rho_after * b.rho_after)) and p.rho_source == "masses"
+    assert pool_calibrations([a]) is a
+    c = calibrate_material("blade", 210e9, 7850.0, 700.0, 690.0, 0.033)
+    assert pool_calibrations([a, c]).rho_source == "nominal"
+    with pytest.raises(ValueError, match="different components"):
+        pool_calibrations([a, calibrate_material("disk", 200e9, 7800.0, 1000.0, 1010.0, 1.7)])
