@@ -40,9 +40,9 @@ import tomli_w
 
 from ema.uff import write_frfs
 from rom.academic import AcademicParams, build_bladed_disk
-from rom.calibration import component_mass
 from rom.solver import nodal_diameters
 
+from .documents import blade_deltas_pct, jsonable, specimen_truth, weighed
 from .films import ORIENTATION, FilmParams, render_film, write_film
 from .hammer import hammer_test
 from .patterns import PressureParams, flank_coordinates, simulate_pressure
@@ -309,12 +309,12 @@ class _CampaignWriter:
                       "grid": list(params.grid)},
             "tests": [],
             "films": [],
-            "masses": _weighed(self.twin),
+            "masses": weighed(self.twin),
         }
         pressure = self.pressure
         self.truth: dict = {"seed": spec.seed, "n_blades": params.n_blades, "grid": list(params.grid),
                             "known_joints": list(known), "realism": spec.realism,
-                            "truth_params": _jsonable(self.truth_params), **_specimen_truth(self.twin),
+                            "truth_params": jsonable(self.truth_params), **specimen_truth(self.twin),
                             "blade_variations": [v.to_dict() for v in self.twin.variations],
                             "contact_fraction_pct": {"L": (100 * pressure.fractions[:, 0]).tolist(),
                                                      "R": (100 * pressure.fractions[:, 1]).tolist()}}
@@ -450,7 +450,7 @@ class _CampaignWriter:
                                               families=FULL_FAMILIES))
         # no max_order hint: the EMA's families fit finds the order from the data (docs/ema.md)
         self.manifest["tests"].append({"type": "assembly", "file": "assembly/assembly.uff"})
-        self.truth["blade_deltas_pct"] = _blade_deltas_pct(self.truth["frequencies_hz"]["blades"])
+        self.truth["blade_deltas_pct"] = blade_deltas_pct(self.truth["frequencies_hz"]["blades"])
 
     def films(self) -> None:
         """Every flank's film scan into ``truth/films/``; the known joints' also into ``films/``."""
@@ -460,7 +460,7 @@ class _CampaignWriter:
                 image, meta = render_film(self.pressure, s, flank, self.rng_film, self.spec.film)
                 name = f"joint_{_nn(s)}_{flank}.png"
                 write_film(self.root / "truth" / "films" / name, image)
-                entry = {"joint": s, "flank": flank, "file": f"films/{name}", **_jsonable(meta.to_dict())}
+                entry = {"joint": s, "flank": flank, "file": f"films/{name}", **jsonable(meta.to_dict())}
                 if s in self.known:
                     write_film(self.root / "films" / name, image)
                     self.n_files += 1
@@ -485,41 +485,3 @@ class _CampaignWriter:
         (self.root / "truth" / "truth.json").write_text(json.dumps(self.truth, indent=1), encoding="utf-8")
         (self.root / "campaign.toml").write_text(tomli_w.dumps(self.manifest), encoding="utf-8")
         return self.n_files
-
-
-def _weighed(twin) -> dict:
-    """What a lab's balance says (manifest ``[masses]``): the disk to 0.1 g, each blade to 1 mg (kg)."""
-    return {"disk_kg": round(component_mass(twin.truth_disk), 4),
-            "blade_kg": [round(component_mass(b), 6) for b in twin.blades]}
-
-
-def _specimen_truth(twin) -> dict:
-    """The specimen's own effects for ``truth.json``: material offsets, sector moduli, test-day factors."""
-    return {"material_offsets": dict(twin.materials), "day_factors": dict(twin.day_factors),
-            "disk_sector_moduli": None if twin.sector_moduli is None else twin.sector_moduli.tolist(),
-            "truth_mesh_level": twin.bd.params.level}
-
-
-def _blade_deltas_pct(freqs: list[list[float]]) -> list[list[float]]:
-    """Paper Eq. 37 on the exact frequencies: (ω²_b − mean_b ω²) / mean_b ω² · 100, blade × mode."""
-    n = min(len(f) for f in freqs)
-    lam = np.array([f[:n] for f in freqs]) ** 2
-    return (100 * (lam - lam.mean(axis=0)) / lam.mean(axis=0)).tolist()
-
-
-def _jsonable(obj) -> dict:
-    """A dataclass or dict with numpy scalars and tuples made plain JSON/TOML values."""
-    from dataclasses import asdict, is_dataclass
-
-    d = asdict(obj) if is_dataclass(obj) else dict(obj)
-
-    def plain(x):
-        if isinstance(x, dict):
-            return {k: plain(v) for k, v in x.items() if v is not None}
-        if isinstance(x, (list, tuple)):
-            return [plain(v) for v in x]
-        if isinstance(x, np.generic):
-            return x.item()
-        return x
-
-    return plain(d)
