@@ -142,10 +142,9 @@ def _graph(campaigns: list[Campaign], opts: RunOptions, store: Store, say
     used, notes = dict(models), [[] for _ in campaigns]
     if opts.calibrate:
         cals: dict[str, list] = {}
-        for c, p, spec in zip(campaigns, pipes, spec_of, strict=True):
+        for k, (c, p, spec) in enumerate(zip(campaigns, pipes, spec_of, strict=True)):
             say(f"calibrating the FE model's materials on the tests of {c.name} (paper §5)")
-            cals.setdefault(spec, []).append(_calibration(c, p, models[spec], store, opts, say,
-                                                          notes[campaigns.index(c)]))
+            cals.setdefault(spec, []).append(_calibration(c, p, models[spec], store, opts, say, notes[k]))
         for spec, found in cals.items():
             used[spec], note = _calibrated(models[spec], found)
             for k, s in enumerate(spec_of):
