@@ -435,7 +435,6 @@ def hammer_test(
             # The range is set on the elastic response: a free specimen's rigid-body drift lies below any band
             # and the analyser's AC coupling takes it out first (else its constant velocity, the bulk of the
             # record's RMS, would bury the weaker modes under a noise floor no 24-bit analyser has).
-            gram = gram.copy()
             gram[-1, :] = gram[:, -1] = 0.0
         # modal participation of each column at each output for this hammer DOF
         C = phi[outputs] * phi[i][None, :]

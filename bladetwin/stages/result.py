@@ -158,7 +158,7 @@ def _notes(res: dict, campaign, opts: RunOptions, fits: dict) -> list[str]:
     if missing:
         notes.append(f"Joints {missing}: none of the feature modes was found in the disk-one-blade EMA within "
                      f"{100 * MATCH_WINDOW:.0f} %; they get the baseline pattern.")
-    partial = getattr(res["predictions"], "partial", {})
+    partial = res["predictions"].partial
     if partial:
         which = "; ".join(f"joint {j}: mode {', '.join(map(str, m))}" for j, m in partial.items())
         notes.append(f"Feature modes not found in the disk-one-blade EMA within {100 * MATCH_WINDOW:.0f} % ({which}): "
