@@ -41,6 +41,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .frf import FRF_FORMS, FRFSet
+from .gram import gauss_newton
 from .lsfd import _half_widths, lsfd, synthesize
 from .modal import ModalModel, modal_from_pole, pole_from_modal
 
@@ -128,28 +129,36 @@ class _Window:
                            axis=1)
         return np.vstack([C.real, C.imag])
 
-    def solve(self, lam: np.ndarray, part: np.ndarray) -> tuple[float, np.ndarray, np.ndarray, np.ndarray]:
-        """(cost ½‖r‖², residual (rows, n_out), coefficients (columns, n_out), Q of the design)."""
+    def solve(self, lam: np.ndarray, part: np.ndarray
+              ) -> tuple[float, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """(cost ½‖r‖², residual (rows, n_out), coefficients (columns, n_out), Q and R of the design)."""
         Q, R = np.linalg.qr(self.design(lam, part))
         QtY = Q.T @ self.Y
         res = self.Y - Q @ QtY
         coef = np.linalg.lstsq(R, QtY, rcond=None)[0]
-        return 0.5 * float(np.sum(res**2)), res, coef, Q
+        return 0.5 * float(np.sum(res**2)), res, coef, Q, R
 
-    def normal_equations(self, lam: np.ndarray, part: np.ndarray, pivot: np.ndarray, scores: bool = False,
-                         draws: np.ndarray | None = None) -> tuple[float, np.ndarray, np.ndarray]:
-        """Cost, Gauss–Newton matrix JᵀJ and gradient Jᵀr in (f Hz, log ζ, Re/Im l without the pivot) per mode.
+    def gauss_newton(self, lam: np.ndarray, part: np.ndarray, pivot: np.ndarray, solved: tuple | None = None
+                     ) -> tuple[float, np.ndarray, np.ndarray]:
+        """Cost, Gauss–Newton matrix JᵀJ and gradient Jᵀr in (f Hz, log ζ, Re/Im l without the pivot) per mode,
+        from the kernels' Gram matrices (:func:`ema.gram.gauss_newton`); :meth:`scores` forms the Jacobian.
+        ``solved``: :meth:`solve`'s answer at the same poles and participations, if the caller has it."""
+        cost, res, coef, _, R = solved if solved is not None else self.solve(lam, part)
+        g = self.jw**self.power
+        JJ, grad = gauss_newton(self.kernels(lam), np.vstack([g / self.jw**2, g]), part, pivot, lam, res, coef, R)
+        return cost, JJ, grad
 
-        With ``scores`` the third item is instead each spectral line's share of the gradient, shape
-        (n_lines, n_parameters), for the sandwich covariance of :func:`_result`; with ``draws`` (residuals drawn
-        from a noise model, shape (n_draws, rows, n_out)) the same for the fit's residual and then each draw,
-        shape (1 + n_draws, n_lines, n_parameters).
+    def scores(self, lam: np.ndarray, part: np.ndarray, pivot: np.ndarray, draws: np.ndarray
+               ) -> tuple[np.ndarray, np.ndarray]:
+        """Gauss–Newton matrix JᵀJ (as :meth:`gauss_newton`) and each spectral line's share of the gradient, for
+        the sandwich covariance of :func:`_result`: for the fit's residual and then each of ``draws`` (residuals
+        drawn from a noise model, shape (n_draws, rows, n_out)); shape (1 + n_draws, n_lines, n_parameters).
 
         Kaufman's variable-projection Jacobian of parameter k of mode r is ``−P⊥ (d1_k x_rᵀ + d2_k y_rᵀ)``
         (d1, d2: the derivatives of mode r's two design columns; x_r, y_r: its rows Re ψ_r, Im ψ_r of the
         coefficients), rank two over the outputs, so JᵀJ is assembled from 2 × 2 blocks.
         """
-        cost, res, coef, Q = self.solve(lam, part)
+        _, res, coef, Q, _ = self.solve(lam, part)
         n, ni = lam.size, self.n_in
         a, b, da, db = self.kernels(lam)
         w = np.abs(lam)
@@ -182,17 +191,14 @@ class _Window:
         M = np.stack([coef[:n], coef[n:2 * n]], axis=1)          # (n, 2, n_out)
         N = np.einsum("rao,sbo->rsab", M, M)
         JJ = np.einsum("kalb,klab->kl", G, N[owner_][:, owner_])
-        if scores:
-            Er = E.reshape(-1, m, 2)
+        Er = E.reshape(-1, m, 2)
 
-            def per_line(r: np.ndarray) -> np.ndarray:    # one residual at a time: bounded memory
-                RM = np.einsum("xo,rao->xra", r, M)                              # (rows, n, 2)
-                per_row = -np.einsum("xka,xka->xk", Er, RM[:, owner_, :])
-                return per_row.reshape(2, self.n_in, self.n_lines, m).sum(axis=(0, 1))
+        def per_line(r: np.ndarray) -> np.ndarray:    # one residual at a time: bounded memory
+            RM = np.einsum("xo,rao->xra", r, M)                              # (rows, n, 2)
+            per_row = -np.einsum("xka,xka->xk", Er, RM[:, owner_, :])
+            return per_row.reshape(2, self.n_in, self.n_lines, m).sum(axis=(0, 1))
 
-            return cost, JJ, per_line(res) if draws is None else np.stack([per_line(r) for r in (res, *draws)])
-        grad = -np.einsum("kao,kao->k", (E.T @ res).reshape(m, 2, -1), M[owner_])
-        return cost, JJ, grad
+        return JJ, np.stack([per_line(r) for r in (res, *draws)])
 
 
 def _step(f, logz, part, pivot, delta):
@@ -225,7 +231,7 @@ def _refine(win: _Window, f, zeta, part, pivot):
     """Levenberg–Marquardt on the variable-projection cost; returns (f, ζ, part)."""
     f, logz = np.asarray(f, float).copy(), np.log(np.clip(zeta, *ZETA_BOUNDS))
     lo, hi = win.freq[0], win.freq[-1]
-    cost, JJ, grad = win.normal_equations(pole_from_modal(f, np.exp(logz)), part, pivot)
+    cost, JJ, grad = win.gauss_newton(pole_from_modal(f, np.exp(logz)), part, pivot)
     mu = 1e-3
     for _ in range(MAX_ITER):
         scale = np.where(np.diag(JJ) > 0, np.diag(JJ), 1.0)
@@ -233,7 +239,8 @@ def _refine(win: _Window, f, zeta, part, pivot):
             delta = -np.linalg.solve(JJ + mu * np.diag(scale), grad)
             f2, logz2, part2 = _step(f, logz, part, pivot, delta)
             f2 = np.clip(f2, lo, hi)
-            cost2 = win.solve(pole_from_modal(f2, np.exp(logz2)), part2)[0]
+            solved = win.solve(pole_from_modal(f2, np.exp(logz2)), part2)
+            cost2 = solved[0]
             if cost2 < cost:
                 mu = max(mu / 3, 1e-12)
                 break
@@ -242,7 +249,7 @@ def _refine(win: _Window, f, zeta, part, pivot):
                 return f, np.exp(logz), part
         gain = (cost - cost2) / cost
         f, logz, part = f2, logz2, part2
-        cost, JJ, grad = win.normal_equations(pole_from_modal(f, np.exp(logz)), part, pivot)
+        cost, JJ, grad = win.gauss_newton(pole_from_modal(f, np.exp(logz)), part, pivot, solved)
         if gain < TOL:
             break
     return f, np.exp(logz), part
@@ -265,7 +272,7 @@ def _explains(win: _Window, f, zeta, part, r: int) -> bool:
     every true mode: a pole fitting the window's background).
     """
     lam = pole_from_modal(f, zeta)
-    cost, res, _, _ = win.solve(lam, part)
+    cost, res = win.solve(lam, part)[:2]
     left = _band_energy(win, res, f[r], zeta[r])
     keep = np.arange(f.size) != r
     without = win.solve(lam[keep], part[:, keep])[0] if keep.any() else 0.5 * float(np.sum(win.Y**2))
@@ -365,7 +372,7 @@ def _restart_participations(frf: FRFSet, win: _Window, window: tuple[float, floa
 def _result(win, window, f, zeta, part, pivot, n_start) -> FamilyFit:
     lam = pole_from_modal(f, zeta)
     n = f.size
-    _, res, coef, _ = win.solve(lam, part) if n else (0, None, np.zeros((0, win.n_out)), 0)
+    _, res, coef = win.solve(lam, part)[:3] if n else (0, None, np.zeros((0, win.n_out)))
     psi = coef[:n] + 1j * coef[n:2 * n]                   # (n, n_out)
     residues = psi[:, :, None] * part.T[:, None, :]
     n_par = n * (2 * win.n_in + 2 * win.n_out) + 2 * win.n_in * win.n_out   # nonlinear, shapes, residual terms
@@ -378,7 +385,7 @@ def _result(win, window, f, zeta, part, pivot, n_start) -> FamilyFit:
             # or two peak lines, too few clusters for their residuals to measure the noise (seed 11: truths at
             # 2-4 σ). The second takes the meat from residuals drawn from a noise model fitted to the window.
             # Plain Gauss-Newton, one variance for all lines, held only 39-60 % of the truths within ± 2 σ.
-            _, JJ, per = win.normal_equations(lam, part, pivot, scores=True, draws=_noise_draws(win, res))
+            JJ, per = win.scores(lam, part, pivot, _noise_draws(win, res))
             per_line, drawn = per[0], per[1:]
             bread = np.linalg.inv(JJ)
             meat = per_line.T @ per_line * win.Y.size / max(win.Y.size - n_par, 1)

@@ -1,0 +1,46 @@
+"""The family window's Gauss–Newton normal equations from kernel Gram matrices (ema.gram) against two
+independent references: the Jacobian formed explicitly over every row (``_Window.scores``), and the gradient
+of the variable-projection cost by central differences."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from ema import FRFSet
+from ema.family import _normalised, _step, _Window
+from ema.modal import pole_from_modal
+
+
+def _window(form: str, n_in: int, seed: int = 0):
+    rng = np.random.default_rng(seed)
+    freq = 0.5 * np.arange(800, 900)
+    H = rng.standard_normal((9, n_in, freq.size)) + 1j * rng.standard_normal((9, n_in, freq.size))
+    outputs = tuple((o + 1, 3) for o in range(9))
+    frf = FRFSet(freq, H, outputs, outputs[:n_in], form=form, units="m/s/N")
+    n = 5
+    f = np.sort(rng.uniform(405.0, 445.0, n))
+    zeta = rng.uniform(0.001, 0.02, n)
+    part, pivot = _normalised(rng.standard_normal((n_in, n)) + 1j * rng.standard_normal((n_in, n)))
+    return _Window(frf, (402.0, 448.0)), f, zeta, part, pivot
+
+
+@pytest.mark.parametrize("form,n_in", [("mobility", 3), ("receptance", 1), ("accelerance", 4)])
+def test_gram_normal_equations_equal_the_explicit_jacobian_and_finite_differences(form, n_in):
+    win, f, zeta, part, pivot = _window(form, n_in)
+    lam = pole_from_modal(f, zeta)
+    cost, JJ, grad = win.gauss_newton(lam, part, pivot)
+    JJ_explicit, per_line = win.scores(lam, part, pivot, np.zeros((0, *win.Y.shape)))
+    np.testing.assert_allclose(JJ, JJ_explicit, rtol=0, atol=1e-10 * np.abs(JJ_explicit).max())
+    # the gradient of ½‖P⊥ y‖² in (f, log ζ, Re/Im l), by central differences of the cost
+    fd = np.empty(grad.size)
+    for k in range(grad.size):
+        h = np.zeros(grad.size)
+        h[k] = 1e-6
+        costs = []
+        for sign in (1, -1):
+            f2, logz2, part2 = _step(f, np.log(zeta), part, pivot, sign * h)
+            costs.append(win.solve(pole_from_modal(f2, np.exp(logz2)), part2)[0])
+        fd[k] = (costs[0] - costs[1]) / 2e-6
+    np.testing.assert_allclose(grad, fd, rtol=1e-5, atol=1e-6 * np.abs(fd).max())
+    assert cost == pytest.approx(win.solve(lam, part)[0], rel=1e-14)
