@@ -17,8 +17,9 @@ This module fits that model window by window:
   Variable projection: for given poles and participations the shapes ψ and the real residual terms are one
   linear least-squares solve shared by every output; the natural frequencies, log damping ratios and
   participations (each normalised to 1 at its largest reference) are refined by Levenberg–Marquardt with
-  Kaufman's Jacobian. The Jacobian of each parameter is rank two over the outputs, so its Gram matrix is
-  assembled without forming the Jacobian (the outputs' count drops out of the cost).
+  Kaufman's Jacobian. The Jacobian of each parameter is rank two over the outputs, and each of its columns
+  is a few kernels of the frequency times a coefficient per reference, so its Gram matrix is assembled from
+  the kernels' Gram over the lines without forming the Jacobian (:mod:`ema.gram`).
 - **Growth.** Starting from the modes an ordinary fit selected, the line where the residual holds most energy
   gets a new pole, and the whole window is refined again. The new mode is kept when it explains at least as
   much of the data in its own half-power band as the noise left there (:func:`_explains`), and its damping is
