@@ -272,6 +272,10 @@ def render_results(docs: dict) -> str:
              f"- stage nodes computed {stages.get('computed', '?')}, reused from the store "
              f"{stages.get('reused', '?')}; wall time {_fmt(lookup(s, 'timings_s.total'), '.1f')} s "
              "(`summary.json:timings_s.total`)"]
+    longest = list(stages.get("seconds", {}).items())[:8]
+    if longest:
+        lines.append("- the longest stage nodes, each node's own seconds (`summary.json:stages.seconds`): "
+                     + ", ".join(f"`{name}` {sec:.0f}" for name, sec in longest))
     return "\n".join(lines) + "\n"
 
 
