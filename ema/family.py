@@ -145,6 +145,13 @@ class _Window:
         from the kernels' Gram matrices (:func:`ema.gram.gauss_newton`); :meth:`scores` forms the Jacobian.
         ``solved``: :meth:`solve`'s answer at the same poles and participations, if the caller has it."""
         cost, res, coef, _, R = solved if solved is not None else self.solve(lam, part)
+        # each design column's sine to the span of the columns before it (scale-free, unlike cond(R): the
+        # residual terms' columns differ by ω² in scale); where one is nearly dependent (two equal poles) the
+        # Gram route's Qᵀ D = R⁻ᵀ Cᵀ D loses the digits, and the Jacobian is formed row by row instead
+        sines = np.abs(np.diag(R)) / np.maximum(np.linalg.norm(R, axis=0), np.finfo(float).tiny)
+        if sines.size and sines.min() <= 1e-8:
+            JJ, per = self.scores(lam, part, pivot, np.zeros((0, *self.Y.shape)))
+            return cost, JJ, per[0].sum(axis=0)
         g = self.jw**self.power
         JJ, grad = gauss_newton(self.kernels(lam), np.vstack([g / self.jw**2, g]), part, pivot, lam, res, coef, R)
         return cost, JJ, grad

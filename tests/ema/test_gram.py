@@ -44,3 +44,17 @@ def test_gram_normal_equations_equal_the_explicit_jacobian_and_finite_difference
         fd[k] = (costs[0] - costs[1]) / 2e-6
     np.testing.assert_allclose(grad, fd, rtol=1e-5, atol=1e-6 * np.abs(fd).max())
     assert cost == pytest.approx(win.solve(lam, part)[0], rel=1e-14)
+
+
+def test_a_rank_deficient_design_still_gets_the_explicit_normal_equations():
+    """Two equal poles with equal participations make the design singular; the Gram route's triangular solve
+    would return garbage, so the window forms the Jacobian row by row (finite, and the gradient of the cost)."""
+    win, f, zeta, part, pivot = _window("mobility", 2)
+    f, zeta = np.r_[f[:2], f[1]], np.r_[zeta[:2], zeta[1]]
+    part, pivot = np.c_[part[:, :2], part[:, 1]], np.r_[pivot[:2], pivot[1]]
+    lam = pole_from_modal(f, zeta)
+    _, JJ, grad = win.gauss_newton(lam, part, pivot)
+    JJ_explicit, per_line = win.scores(lam, part, pivot, np.zeros((0, *win.Y.shape)))
+    assert np.all(np.isfinite(JJ)) and np.all(np.isfinite(grad))
+    np.testing.assert_allclose(JJ, JJ_explicit, rtol=0, atol=1e-8 * np.abs(JJ_explicit).max())
+    np.testing.assert_allclose(grad, per_line[0].sum(axis=0), rtol=0, atol=1e-8 * np.abs(grad).max())
