@@ -182,12 +182,11 @@ def run_campaigns(campaigns: Iterable[Campaign], opts: RunOptions | None = None,
         timings = _timings(runner.seconds, pre)
         timings["total"] = time.perf_counter() - t0
         view = _Prefixed(res, pre) if pre else res
-        counts = {"computed": sum(n.startswith(pre) for n in runner.computed),
-                  "reused": sum(n.startswith(pre) for n in runner.reused),
+        computed = [n for n in runner.computed if n.startswith(pre)]
+        counts = {"computed": len(computed), "reused": sum(n.startswith(pre) for n in runner.reused),
                   # where a cold run's time goes: each computed node's own seconds, largest first
-                  "seconds": dict(sorted(((n[len(pre):], round(s, 2)) for n, s in runner.seconds.items()
-                                          if n.startswith(pre) and n in runner.computed and s >= 0.05),
-                                         key=lambda kv: -kv[1]))}
+                  "seconds": dict(sorted(((n[len(pre):], round(runner.seconds[n], 2)) for n in computed
+                                          if runner.seconds.get(n, 0.0) >= 0.05), key=lambda kv: -kv[1]))}
         with recording() as texts:
             res_c = gather(view, c, opts, sources[pre + "fe_model"].value, timings)
         found = unique([*checked[len(out)], *runner.warnings_of(pre), *runner.emit(unique(texts))])

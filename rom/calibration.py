@@ -11,6 +11,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.stats import gmean
 
 from .component import Component
 from .solver import solve_modes
@@ -208,12 +209,11 @@ def pool_calibrations(cals: list[MaterialCalibration]) -> MaterialCalibration:
            for c in cals):
         raise ValueError(f"pool_calibrations: the calibrations are of different components or models "
                          f"({sorted({c.component for c in cals})})")
-    gmean = lambda xs: float(np.exp(np.mean(np.log(xs))))  # noqa: E731
     masses = [c.mass_kg for c in cals]
     weighed = all(m is not None for m in masses)
     return MaterialCalibration(
         first.component, float(np.sqrt(np.mean([c.target_hz**2 for c in cals]))), first.model_hz, first.E_before,
-        gmean([c.E_after for c in cals]), first.rho_before, gmean([c.rho_after for c in cals]),
+        float(gmean([c.E_after for c in cals])), first.rho_before, float(gmean([c.rho_after for c in cals])),
         "masses" if weighed else "nominal", float(np.mean(masses)) if weighed else None, first.model_mass_kg)
 
 

@@ -59,7 +59,7 @@ class RunResult:
     notes: list[str]
     timings_s: dict[str, float] = field(default_factory=dict)
     #: Stage nodes of this campaign computed in this run and found in the store (``computed``, ``reused``):
-    #: a run's timings are a cold run's only when nothing was reused.
+    #: a run's timings are a cold run's only when nothing was reused; ``seconds``: each computed node's own time.
     stage_counts: dict = field(default_factory=dict)
     #: What the user should know about the inputs and the run (one line each; :mod:`bladetwin.user_warnings`):
     #: a film read under a stated interpretation, a stage's numerical warning, a damaged store entry recomputed.
