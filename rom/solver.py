@@ -28,6 +28,7 @@ __all__ = [
     "available_backends",
     "solve_modes",
     "solve_modes_factored",
+    "block_krylov_modes",
     "nodal_diameters",
     "PARDISO_MIN_DOF",
 ]
@@ -254,7 +255,7 @@ def solve_modes(
     return ModalSolution(freqs, vecs[:, elastic], vecs[:, rigid])
 
 
-def solve_modes_factored(K, M, n_modes: int, fac, *, sigma: float = 0.0) -> ModalSolution:
+def solve_modes_factored(K, M, n_modes: int, fac, *, sigma: float = 0.0, block: int = 0) -> ModalSolution:
     """Lowest ``n_modes`` modes of a pencil with no rigid-body modes, on a factorization the caller owns.
 
     For a component with a clamped boundary (K positive definite) the factorization of K itself (σ = 0)
@@ -270,17 +271,30 @@ def solve_modes_factored(K, M, n_modes: int, fac, *, sigma: float = 0.0) -> Moda
         A factorization of K − σM (:func:`factorize`); not freed here.
     sigma : float
         The shift of ``fac`` in (rad/s)².
+    block : int
+        0: ARPACK's single-vector Lanczos. Otherwise the block Krylov method of :func:`block_krylov_modes` with
+        this many vectors per block, for a factorization whose blocked solves cost much less per vector than
+        single ones (Pardiso: 16 vectors cost 0.35 s against 0.14 s for one on the 170 k-DOF disk interior).
     """
     n = K.shape[0]
     if not (isinstance(n_modes, (int, np.integer)) and 1 <= n_modes < n):
         raise ValueError(f"n_modes must be an integer in 1..{n - 1}, got {n_modes!r}")
-    vals, vecs = _complete_modes(K, M, sigma, fac, int(n_modes), _start_vector(n), 0)
+    if not (isinstance(block, (int, np.integer)) and block >= 0):
+        raise ValueError(f"block must be a non-negative integer, got {block!r}")
+    first = block_krylov_modes(M, sigma, fac, int(n_modes), int(block)) if block else None
+    if block and first is None:
+        log.info("solve_modes_factored: the block Krylov run did not converge; ARPACK instead")
+    vals, vecs = _complete_modes(K, M, sigma, fac, int(n_modes), _start_vector(n), 0, first=first)
     freqs = np.sqrt(np.clip(vals, 0.0, None)) / (2 * np.pi)
     return ModalSolution(freqs, vecs, np.zeros((n, 0)))
 
 
-def _complete_modes(K, M, sigma: float, fac, k: int, v0: np.ndarray, max_rigid_hint: int = 6, max_rounds: int = 4):
+def _complete_modes(K, M, sigma: float, fac, k: int, v0: np.ndarray, max_rigid_hint: int = 6, max_rounds: int = 4,
+                    first: tuple[np.ndarray, np.ndarray] | None = None):
     """The ``k`` lowest eigenpairs by shift-invert Lanczos, checked for missed copies of repeated eigenvalues.
+
+    ``first``: eigenpairs (ω², shapes) already found by another method (:func:`block_krylov_modes`), which
+    then only go through the check; None runs ARPACK from ``v0``.
 
     Returns
     -------
@@ -290,9 +304,10 @@ def _complete_modes(K, M, sigma: float, fac, k: int, v0: np.ndarray, max_rigid_h
         Mass-normalised eigenvectors.
     """
     n = K.shape[0]
-    op = sla.LinearOperator((n, n), matvec=fac.solve, dtype=np.float64)
-    vals, vecs = sla.eigsh(K, k=k, M=M, sigma=sigma, which="LM", OPinv=op, tol=1e-12, v0=v0)
-    vals, vecs = _sorted_normalised(vals, vecs, M)
+    if first is None:
+        op = sla.LinearOperator((n, n), matvec=fac.solve, dtype=np.float64)
+        first = sla.eigsh(K, k=k, M=M, sigma=sigma, which="LM", OPinv=op, tol=1e-12, v0=v0)
+    vals, vecs = _sorted_normalised(*first, M)
     # A few vectors suffice: Lanczos rarely misses more than one copy per cluster, and each round re-checks.
     k_check = min(k, max(max_rigid_hint, 2), n - k - 1)
     for _ in range(max_rounds):
@@ -316,6 +331,113 @@ def _complete_modes(K, M, sigma: float, fac, k: int, v0: np.ndarray, max_rigid_h
         vals, vecs = _sorted_normalised(np.r_[vals, more[missed]], np.c_[vecs, more_vecs[:, missed]], M)
         vals, vecs = vals[:k], vecs[:, :k]
     return vals, vecs
+
+
+def block_krylov_modes(M, sigma: float, fac, k: int, block: int, *, tol: float = 1e-12, floor_tol: float = 1e-10,
+                       seed: int = 0) -> tuple[np.ndarray, np.ndarray] | None:
+    """The ``k`` lowest eigenpairs of (K, M) by block shift-invert Krylov, or None if it does not converge.
+
+    The Krylov space of T = (K − σM)⁻¹ M from ``block`` deterministic vectors, kept M-orthonormal by two
+    passes of block Gram–Schmidt, and a Rayleigh–Ritz step on T itself: H = Vᵀ M T V, whose largest
+    eigenvalues θ give ω² = σ + 1/θ. Projecting T rather than K keeps the low modes' relative accuracy: Vᵀ K V
+    loses it to K's conditioning (measured: its Ritz values stall at 1e-9 relative on the 170 k-DOF disk
+    interior, T's reach 1e-14). One factorized solve per block, instead of ARPACK's one per vector, is what
+    it is for: on that disk, 100 modes took 400 vectors in 25 blocks of 16 and 28 s, against ARPACK's 253
+    single solves and 57 s, with the same eigenvalues to 4e-14 (``tests/rom/test_solver.py``).
+
+    Convergence is ARPACK's test (``tol`` on ‖T x − θ x‖_M / θ), read from the Krylov relation
+    T V = V H + R Eᵀ: the residual of a Ritz vector with coefficients y is ‖R y_last‖_M, y_last its last
+    block's entries, and R's M-Gram comes for free from the next block's first Gram–Schmidt pass. A residual
+    below ``floor_tol`` that stops falling has met the solves' round-off and is accepted (eigenvalues are
+    then accurate to its square).
+
+    Parameters
+    ----------
+    M : sparse matrix, shape (n, n)
+        Mass matrix (positive definite).
+    sigma : float
+        The shift of ``fac`` in (rad/s)².
+    fac : object with ``solve(b)``
+        A factorization of K − σM taking blocks of right-hand sides, shape (n, block).
+    k, block : int
+        Modes wanted; vectors per block.
+
+    Returns
+    -------
+    (vals, vecs) : ndarray, shape (k,), and ndarray, shape (n, k)
+        ω² (rad/s)², ascending, and M-orthonormal shapes; None when the space reached min(n, 6k + 8·block)
+        vectors, or a block could not be made M-orthonormal, before converging (the caller then falls back to
+        ARPACK).
+    """
+    n = M.shape[0]
+    cap = min(n, 6 * k + 8 * block)
+    V = np.empty((n, cap), order="F")
+    MV = np.empty((n, cap), order="F")
+    H = np.zeros((cap, cap))
+    X = np.asarray(fac.solve(M @ _start_block(n, block, seed))).reshape(n, block)
+    nv, width, theta, Y, last = 0, 0, None, None, np.inf
+    while True:
+        Q, R_gram = _m_orthonormalise(X, M @ X, V[:, :nv], MV[:, :nv])
+        if Y is not None:
+            C = Y[nv - width:nv]
+            res = np.sqrt(np.abs(np.einsum("ij,ik,kj->j", C, R_gram, C))) / theta
+            log.debug("block_krylov_modes: %d vectors, largest residual %.1e", nv, res.max())
+            # Converged, or at the round-off floor: small, and no longer falling.
+            if res.max() <= tol or (res.max() <= floor_tol and res.max() >= last):
+                break
+            last = res.max()
+        width = Q.shape[1]
+        if width == 0 or nv + width > cap:
+            return None
+        # M Q afresh, not the product carried through the projections: their round-off, passed on into T Q,
+        # held the residual at 1e-12 on the 170 k-DOF disk interior (2e-13 with this product).
+        V[:, nv:nv + width], MV[:, nv:nv + width] = Q, M @ Q
+        X = np.asarray(fac.solve(MV[:, nv:nv + width])).reshape(n, width)
+        H[: nv + width, nv:nv + width] = MV[:, : nv + width].T @ X
+        H[nv:nv + width, :nv] = H[:nv, nv:nv + width].T
+        nv += width
+        if nv >= k + block:
+            w, U = np.linalg.eigh(0.5 * (H[:nv, :nv] + H[:nv, :nv].T))
+            theta, Y = w[::-1][:k], U[:, ::-1][:, :k]
+    log.debug("block_krylov_modes: %d modes from %d vectors", k, nv)
+    return sigma + 1.0 / theta, V[:, :nv] @ Y
+
+
+def _start_block(n: int, block: int, seed: int) -> np.ndarray:
+    """Deterministic start block (design §3): the same model always gives the same modes."""
+    return np.random.default_rng(seed).standard_normal((n, block))
+
+
+def _m_orthonormalise(X, MX, V, MV, drop: float = 1e-12):
+    """X's columns M-orthonormal and M-orthogonal to V's, by two passes of block Gram–Schmidt.
+
+    Each pass projects V out and normalises the block on the eigenvectors of its M-Gram, dropping directions
+    whose Gram eigenvalue is below ``drop`` times the largest: such a block (a Krylov block near convergence,
+    whose converged directions are round-off) has lost them already. The first pass leaves a well-conditioned
+    block, which the second makes orthonormal to round-off (Cholesky alone lost 1e-8 on a block of condition
+    number 1e9). M X is carried through the projections (M (X − V c) = M X − M V c), so the caller applies M
+    once per block.
+
+    Returns
+    -------
+    Q : ndarray, shape (n, r)
+        r ≤ X's columns; r = 0 when X lies in span(V) to round-off.
+    gram : ndarray, shape (b, b)
+        X's M-Gram after the first projection (the residual block of :func:`block_krylov_modes`).
+    """
+    gram0 = None
+    for _ in range(2):
+        if V.shape[1]:
+            c = MV.T @ X
+            X, MX = X - V @ c, MX - MV @ c
+        G = X.T @ MX
+        G = 0.5 * (G + G.T)
+        gram0 = G if gram0 is None else gram0
+        w, U = np.linalg.eigh(G)
+        keep = w > drop * max(w[-1], 0.0) if w.size and w[-1] > 0 else np.zeros(w.size, bool)
+        S = U[:, keep] / np.sqrt(w[keep])
+        X, MX = X @ S, MX @ S
+    return X, gram0
 
 
 def anything_missed(K, M, fac, vals: np.ndarray, vecs: np.ndarray, b: int, iterations: int = 4) -> bool:

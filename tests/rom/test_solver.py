@@ -9,7 +9,14 @@ import pytest
 
 from rom.contact import ContactPattern
 from rom.fe_assembly import assemble_fe
-from rom.solver import available_backends, factorize, nodal_diameters, solve_modes
+from rom.solver import (
+    available_backends,
+    block_krylov_modes,
+    factorize,
+    nodal_diameters,
+    solve_modes,
+    solve_modes_factored,
+)
 
 
 @pytest.fixture(scope="module")
@@ -102,3 +109,70 @@ def test_pardiso_direct_solves_agree_with_superlu_and_the_residual(d1b_fe):
     finally:
         pardiso.free()
         superlu.free()
+
+
+@pytest.fixture(scope="module")
+def clamped_disk(coarse_bd):
+    """The coarse disk's interior with slot 1's grids clamped: the pencil of the CB fixed-interface modes."""
+    from rom.craig_bampton import disk_boundary_dofs
+
+    dofs, _ = disk_boundary_dofs(coarse_bd, (1,))
+    keep = np.setdiff1d(np.arange(coarse_bd.disk.n_dof), dofs)
+    K, M = coarse_bd.disk.K, coarse_bd.disk.M
+    return K[keep][:, keep].tocsr(), M[keep][:, keep].tocsr()
+
+
+@pytest.mark.parametrize("backend", available_backends())
+def test_block_krylov_modes_agree_with_arpack(clamped_disk, backend):
+    """The block Krylov run against ARPACK (scipy's eigsh) on the same factorization: same eigenvalues and
+    shapes, M-orthonormal; the CB reduction's fixed-interface modes on Pardiso take this route."""
+    K, M = clamped_disk
+    fac = factorize(K, backend)
+    try:
+        ref = solve_modes_factored(K, M, 30, fac)
+        got = solve_modes_factored(K, M, 30, fac, block=8)
+    finally:
+        fac.free()
+    np.testing.assert_allclose(got.frequencies_hz, ref.frequencies_hz, rtol=1e-10)
+    np.testing.assert_allclose(got.shapes.T @ (M @ got.shapes), np.eye(30), atol=1e-10)
+    # Shapes up to sign, and up to a rotation inside any near-degenerate pair: compare the projectors' overlap.
+    overlap = np.abs(ref.shapes.T @ (M @ got.shapes))
+    assert np.sum(overlap**2, axis=1).min() > 1 - 1e-8
+
+
+def test_block_krylov_modes_keep_both_copies_of_repeated_eigenvalues(coarse_bd):
+    """A free cyclic disk: six rigid-body modes and exact nodal-diameter doublets, all found from one block,
+    against :func:`solve_modes` (ARPACK with its deflated completeness check)."""
+    disk = coarse_bd.disk
+    ref = solve_modes(disk.K, disk.M, 12)
+    sigma = -((2 * np.pi * 200.0) ** 2)
+    fac = factorize((disk.K - sigma * disk.M).tocsr(), "superlu")
+    try:
+        vals, vecs = block_krylov_modes(disk.M, sigma, fac, 20, 8)  # 6 rigid, 12 elastic, one more doublet
+    finally:
+        fac.free()
+    assert np.abs(vals[:6]).max() < 1e-6 * abs(sigma)  # rigid-body modes
+    np.testing.assert_allclose(np.sqrt(vals[6:18]) / (2 * np.pi), ref.frequencies_hz, rtol=1e-9)
+    # Each doublet's plane is spanned (the 12th mode's partner is the 13th): the reference shapes lie in the
+    # span of the modes found.
+    inside = vecs.T @ (disk.M @ ref.shapes)
+    assert np.sum(inside**2, axis=0).min() > 1 - 1e-8
+
+
+def test_m_orthonormalise_keeps_the_rank_of_a_nearly_dependent_block(clamped_disk):
+    """Two columns equal to 1e-4 give two M-orthonormal vectors; equal to 1e-10 (a Krylov block near
+    convergence), one. Either way M-orthogonal to the vectors already kept, to round-off."""
+    from rom.solver import _m_orthonormalise
+
+    K, M = clamped_disk
+    rng = np.random.default_rng(0)
+    V0 = rng.standard_normal((K.shape[0], 4))
+    V, _ = _m_orthonormalise(V0, M @ V0, V0[:, :0], V0[:, :0])
+    MV = M @ V
+    x, y = rng.standard_normal((2, K.shape[0], 1))
+    for eps, rank in ((1e-4, 2), (1e-10, 1)):
+        X = np.hstack([x, x + eps * y])
+        Q, _ = _m_orthonormalise(X, M @ X, V, MV)
+        assert Q.shape[1] == rank
+        np.testing.assert_allclose(Q.T @ (M @ Q), np.eye(rank), atol=1e-12)
+        assert np.abs(V.T @ (M @ Q)).max() < 1e-12
