@@ -38,6 +38,9 @@ def register(sub) -> None:
                         "must be a folder the cluster's workers share)")
     p.add_argument("--json", action="store_true", help="print summary.json instead of the short summary")
     p.add_argument("--quiet", action="store_true", help="no progress on stderr")
+    p.add_argument("--no-figures", action="store_true",
+                   help="write the tables, summary.json, the UFF export and the report, but draw no PNG figures "
+                        "(most of a small run's writing time; for batch studies)")
     p.set_defaults(func=_cmd_run)
 
 
@@ -80,10 +83,10 @@ def _cmd_run(args) -> int:
     summaries, reports = [], []
     for res, out in zip(results, outs, strict=True):
         t_rep = time.perf_counter()
-        say(f"writing tables, figures and the report to {out}")
+        say(f"writing tables{'' if args.no_figures else ', figures'} and the report to {out}")
         res.timings_s["report"] = 0.0
         before = previous_summary(out)
-        stale = remove_stale(out, before, write_outputs(res, out, command=command))
+        stale = remove_stale(out, before, write_outputs(res, out, command=command, figures=not args.no_figures))
         if stale:
             say(f"removed {len(stale)} file(s) an earlier run wrote to {out} and this one did not")
         res.timings_s["report"] = time.perf_counter() - t_rep

@@ -10,11 +10,13 @@ from __future__ import annotations
 import csv
 import io
 import json
+from collections.abc import Callable
 from datetime import UTC, datetime
 from pathlib import Path
 
 import matplotlib.pyplot as plt
 import numpy as np
+from matplotlib.figure import Figure
 
 import ema
 from ema.numbering import rom_modal_model
@@ -52,7 +54,7 @@ from .run_figures import (
 from .stages import PAPER_TABLE8, RunResult
 from .stages.bias import MATCH_WINDOW
 from .user_warnings import emit, recording, unique
-from .util import atomic_savefig, atomic_write_text
+from .util import atomic_savefig, atomic_write_text, drawing_figures, figures_drawn
 
 __all__ = ["write_outputs", "write_sensitivity", "summary_of"]
 
@@ -80,7 +82,15 @@ def _csv(path: Path, header: list[str], rows: list[list]) -> str:
     return path.name
 
 
-def _fig(fig, path: Path) -> str:
+#: The report's note on a run without figures.
+NO_FIGURES_NOTE = "Figures were not drawn (bladetwin run --no-figures); rerun without it to draw them."
+
+
+def _fig(make: Callable[[], Figure], path: Path) -> str | None:
+    """``make()``'s figure saved to ``path`` (its name returned); nothing drawn and None under ``--no-figures``."""
+    if not drawing_figures():
+        return None
+    fig = make()
     atomic_savefig(fig, path, dpi=110)
     plt.close(fig)
     return path.name
@@ -94,12 +104,16 @@ def _stabilization(name: str, test, fit, frf, out: Path) -> dict:
     """One test's stabilization diagram, drawn from its stored diagram over its FRFs."""
     from ema.plots import plot_stabilization
 
-    fig = plot_stabilization(fit.diagram, frf, selected_hz=fit.model.frequencies_hz)
-    fig.axes[0].set_title(f"{test.file.name}: {_method_label(fit)}, "
-                          f"{'picked by hand' if fit.picked else 'automatic selection'}, {fit.model.n_modes} modes")
+    def draw():
+        fig = plot_stabilization(fit.diagram, frf, selected_hz=fit.model.frequencies_hz)
+        fig.axes[0].set_title(f"{test.file.name}: {_method_label(fit)}, "
+                              f"{'picked by hand' if fit.picked else 'automatic selection'}, "
+                              f"{fit.model.n_modes} modes")
+        return fig
+
     families = " The dense mode families were then resolved by the rank-one residue fit (docs/ema.md): the " \
                "modes it added need not sit on a stable column." if "+families" in (fit.model.method or "") else ""
-    return {"file": _fig(fig, out / f"stabilization_{name}.png"),
+    return {"file": _fig(draw, out / f"stabilization_{name}.png"),
             "caption": f"Stabilization diagram of {test.file.name} ({test.type} test), "
                        f"{'hand-picked poles' if fit.picked else 'automatic selection'}.{families}"}
 
@@ -114,7 +128,7 @@ def _families_figure(name: str, test, fit, frf, out: Path) -> list[dict]:
                if np.count_nonzero((f >= w[0]) & (f <= w[1])) >= 4]
     if not windows:
         return []
-    return [{"file": _fig(plot_families(frf, fit.model, windows), out / f"families_{name}.png"),
+    return [{"file": _fig(lambda: plot_families(frf, fit.model, windows), out / f"families_{name}.png"),
              "caption": f"Dense mode families of {test.file.name}: the RMS over all its FRFs, each divided by its "
                         "own median in the window (so that modes seen by a few points show), measured (black) "
                         "against the identified modal model (red, dashed), each mode a blue line."}]
@@ -203,7 +217,7 @@ def _ema_section(res: RunResult, out: Path, notes: list[str]) -> dict:
             figs += _families_figure(name, t, fit, frf, out)
     t_quality = _csv(out / "ema_quality.csv", ["test", "type", "file", "method", "selection", "modes",
                                                "fit quality min", "fit quality mean"], rows)
-    figs.append({"file": _fig(plot_blade_deltas(res.blades.deltas_pct), out / "blade_deltas.png"),
+    figs.append({"file": _fig(lambda: plot_blade_deltas(res.blades.deltas_pct), out / "blade_deltas.png"),
                  "caption": "Blade mistuning δ of every blade and tracked mode (Eq. 37, paper Table 2)."})
     tables = [{"file": t_quality, "caption": "EMA of every test: pole estimator, selection, modes found and fit "
                "quality (1 − relative squared error of the synthesis)."}] + _ema_tables(res, out, notes)
@@ -219,15 +233,15 @@ def write_sensitivity(sens, out: Path, *, plot: bool = True) -> list[str]:
              int(m in sens.feature_modes)] for m in range(sens.n_modes)]
     files = [_csv(out / "sensitivity.csv", ["mode", "mean_hz", "std_hz", "std_pct", "feature"], rows)]
     if plot:
-        files += [_fig(plot_sensitivity(sens), out / "sensitivity.png"),
-                  _fig(plot_frequency_maps(sens), out / "frequency_maps.png")]
+        files += [_fig(lambda: plot_sensitivity(sens), out / "sensitivity.png"),
+                  _fig(lambda: plot_frequency_maps(sens), out / "frequency_maps.png")]
     return files
 
 
 def _patterns_section(res: RunResult, out: Path) -> dict:
     films = res.films
     table, sens_png, maps_png = write_sensitivity(res.sensitivity, out)
-    figs = [{"file": _fig(plot_synthetic_patterns(res.synthetic, [a for a, _ in films.values()],
+    figs = [{"file": _fig(lambda: plot_synthetic_patterns(res.synthetic, [a for a, _ in films.values()],
                                                   [b for _, b in films.values()],
                                                   known_labels=[f"joint {j}" for j in films]), out / "patterns.png"),
              "caption": "Film maps of the known joints and the synthetic patterns SP-1… drawn by the PCA sampler "
@@ -286,10 +300,10 @@ def _geometric(res: RunResult, out: Path, figs: list, tables: list, text: list) 
                "centroid_distance_mm": {"identified": float(1e3 * np.nanmean(geo.centroid_distance)),
                                         "baseline": float(1e3 * np.nanmean(geo_b.centroid_distance))}}
     jl = [f"joint {j}" for j in unknown]
-    figs.append({"file": _fig(plot_area_fractions(geo, joint_labels=jl), out / "area_fractions.png"),
+    figs.append({"file": _fig(lambda: plot_area_fractions(geo, joint_labels=jl), out / "area_fractions.png"),
                  "caption": "Contact area fraction of the identified and reference patterns at the unfilmed joints "
                             "(Eq. 41, paper Figs. 21, 25)."})
-    figs.append({"file": _fig(plot_centroids(geo, [ref[j - 1] for j in unknown], res.bd,
+    figs.append({"file": _fig(lambda: plot_centroids(geo, [ref[j - 1] for j in unknown], res.bd,
                                              [res.final_patterns[j - 1] for j in unknown], joint_labels=jl),
                               out / "centroids.png"),
                  "caption": "Contact centroids, identified (blue) and reference (red), best and worst joint "
@@ -323,14 +337,14 @@ def _identification_section(res: RunResult, out: Path) -> tuple[dict, list, dict
     save_patterns(out / "identified_patterns.npz", res.final_patterns)
     names = [f"{s['joint']}: {'film' if s['joint'] in res.known else s['pattern_L'] + '/' + s['pattern_R']}"
              for s in joints]
-    figs = [{"file": _fig(plot_bias(bias_pct, spread_pct, feat), out / "bias.png"),
+    figs = [{"file": _fig(lambda: plot_bias(bias_pct, spread_pct, feat), out / "bias.png"),
              "caption": "Per-mode ROM bias estimated on the filmed joints; removed from every joint's measured "
                         "features before the k-NN."},
-            {"file": _fig(plot_grid_error(res.step1, blade_labels=[f"joint {j}" for j in res.joints]),
+            {"file": _fig(lambda: plot_grid_error(res.step1, blade_labels=[f"joint {j}" for j in res.joints]),
                           out / "step1_epsilon.png"),
              "caption": "Step 1 of the k-NN: normalized δ grid error ε (Eq. 40, paper Fig. 19); |ε| ≤ 50 % means "
                         "the nearest grid row was chosen."},
-            {"file": _fig(plot_joint_patterns(res.final_patterns, names, res.reference),
+            {"file": _fig(lambda: plot_joint_patterns(res.final_patterns, names, res.reference),
                           out / "identified_patterns_map.png"),
              "caption": "Identified pattern of every joint (films at the known joints)"
                         + (", beside the reference pattern (paper Tables 6–7)." if res.reference is not None else ".")}]
@@ -354,7 +368,8 @@ def _d1b_section(res: RunResult, out: Path) -> tuple[dict, dict]:
     jj = [r["joint"] for r in rows_d]
     header = ["joint", "source"] + [f"measured mode {m} (Hz)" for m in fm] + [f"identified mode {m} (Hz)" for m in fm]
     body = [[r["joint"], r["source"], *map(float, r["measured_hz"]), *map(float, r["identified_hz"])] for r in rows_d]
-    figs = [{"file": _fig(plot_d1b_features(jj, meas, ident, fm, title="identified ROM (bias added back) vs measured"),
+    title = "identified ROM (bias added back) vs measured"
+    figs = [{"file": _fig(lambda: plot_d1b_features(jj, meas, ident, fm, title=title),
                           out / "d1b_experimental.png"),
              "caption": "Disk–one-blade feature modes: the ROM with each joint's identified pattern (its bias added "
                         "back) against the measured frequencies (paper Fig. 27)."}]
@@ -366,7 +381,7 @@ def _d1b_section(res: RunResult, out: Path) -> tuple[dict, dict]:
                                                                          for m in fm]
         body = [b + [*map(float, r["reference_hz"]), *map(float, r["numerical_hz"])]
                 for b, r in zip(body, rows_d, strict=True)]
-        figs.append({"file": _fig(plot_d1b_features(jj, refh, num, fm, title="numerical input: identified vs "
+        figs.append({"file": _fig(lambda: plot_d1b_features(jj, refh, num, fm, title="numerical input: identified vs "
                                                     "reference pattern (ROM)"), out / "d1b_numerical.png"),
                      "caption": "Disk–one-blade feature modes on the numerical input: ROM with the identified pattern "
                                 "against the ROM with the reference pattern (paper Fig. 23)."})
@@ -411,7 +426,7 @@ def _posterior_section(res: RunResult, out: Path, methods: dict) -> list[dict]:
         columns["k-NN"] = [res.answers["knn"]["experimental"][j - 1] for j in joints]
     if res.reference is not None:
         columns["reference"] = [res.reference[j - 1] for j in joints]
-    fig = _fig(plot_contact_probability([posts[j].probability for j in joints], labels, columns),
+    fig = _fig(lambda: plot_contact_probability([posts[j].probability for j in joints], labels, columns),
                out / "contact_probability.png")
     _csv(out / "posterior_contact.csv", POSTERIOR_HEADER, [[_blank(v) for v in r] for r in posterior_rows(res)])
     _csv(out / "posterior_frequencies.csv", FREQUENCY_HEADER,
@@ -453,7 +468,8 @@ def _posterior_section(res: RunResult, out: Path, methods: dict) -> list[dict]:
 def _full_section(res: RunResult, out: Path) -> dict:
     figs = []
     for key, comp in res.validation.comparisons.items():
-        figs.append({"file": _fig(plot_mode_comparison(comp, title=CASE_TITLES[key]), out / f"full_{key}.png"),
+        figs.append({"file": _fig(lambda c=comp, k=key: plot_mode_comparison(c, title=CASE_TITLES[k]),
+                                  out / f"full_{key}.png"),
                      "caption": CASE_TITLES[key] + " (paper Figs. 24, 28)."})
         _csv(out / f"full_pairs_{key}.csv", ["reference mode", "predicted mode", "f reference (Hz)",
                                              "f predicted (Hz)", "Δf (%)", "MAC"],
@@ -484,7 +500,7 @@ def _rom_section(res: RunResult, out: Path, rom: dict | None) -> list[dict]:
     upd = res.rom_update["answer"]
     modes = np.flatnonzero(np.any(upd.corrections != 0, axis=0))
     freq = upd.frequency_correction_pct(res.delta_all)[:, modes]
-    fig = _fig(plot_rom_update(freq, [f"free mode {i + 1} ({upd.free_hz[i]:.0f} Hz)" for i in modes],
+    fig = _fig(lambda: plot_rom_update(freq, [f"free mode {i + 1} ({upd.free_hz[i]:.0f} Hz)" for i in modes],
                                res.validation.families), out / "rom_update.png")
     def cells(rows):  # a figure that does not exist (None) is an empty cell
         return [["" if v is None else v for v in r] for r in rows]
@@ -521,12 +537,15 @@ def _rom_section(res: RunResult, out: Path, rom: dict | None) -> list[dict]:
              "tables": tables}]
 
 
-def write_outputs(res: RunResult, out: Path, *, command: str = "bladetwin run") -> dict:
-    """Write every output of a run into ``out`` and return the summary (also written to summary.json)."""
+def write_outputs(res: RunResult, out: Path, *, command: str = "bladetwin run", figures: bool = True) -> dict:
+    """Write every output of a run into ``out`` and return the summary (also written to summary.json).
+
+    ``figures=False`` (``bladetwin run --no-figures``) writes everything but the PNG figures, and says so.
+    """
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    notes: list[str] = []
-    with recording() as texts:  # e.g. a figure's or a table's warning: to summary.json, not only stderr
+    notes: list[str] = [] if figures else [NO_FIGURES_NOTE]
+    with recording() as texts, figures_drawn(figures):  # a figure's or a table's warning: to summary.json too
         sections = [_ema_section(res, out, notes), calibration_section(res, out, _csv), _patterns_section(res, out)]
         sections = [x for x in sections if x is not None]
         ident, joints, geo = _identification_section(res, out)
@@ -535,6 +554,8 @@ def write_outputs(res: RunResult, out: Path, *, command: str = "bladetwin run") 
         rom = rom_summary(res)
         sections += [ident, *_posterior_section(res, out, methods), d1b, *_rom_section(res, out, rom),
                      _full_section(res, out)]
+    for sec in sections:  # a figure not drawn is not listed
+        sec["figures"] = [f for f in sec.get("figures", []) if f.get("file")]
     for text in unique(texts):
         emit(text)
     summary = summary_of(res, command)

@@ -8,7 +8,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from .stages import RunResult
-from .util import atomic_savefig
+from .util import atomic_savefig, drawing_figures
 
 __all__ = ["calibration_summary", "calibration_section"]
 
@@ -65,7 +65,7 @@ def calibration_section(res: RunResult, out: Path, csv_writer) -> dict | None:
                "caption": "Each free-blade (√ of the blades' mean f²) and free-disk mode against the model, before "
                           "and after calibration (paired by nearest frequency)."}]
     figs = []
-    if modes:
+    if modes and drawing_figures():
         path = out / "calibration.png"
         fig = _plot(modes)
         atomic_savefig(fig, path, dpi=110)

@@ -6,11 +6,31 @@ import json
 import sys
 import time
 from contextlib import contextmanager
+from contextvars import ContextVar
 from pathlib import Path
 
 from rom.fileio import atomic_path
 
-__all__ = ["atomic_write_text", "atomic_savefig", "format_table", "step", "print_json"]
+__all__ = ["atomic_write_text", "atomic_savefig", "format_table", "step", "print_json", "drawing_figures",
+           "figures_drawn"]
+
+#: Whether the run's outputs draw their figures (``bladetwin run --no-figures``: not).
+_DRAW: ContextVar[bool] = ContextVar("bladetwin_draw_figures", default=True)
+
+
+def drawing_figures() -> bool:
+    """Whether figures are drawn here (False inside ``figures_drawn(False)``)."""
+    return _DRAW.get()
+
+
+@contextmanager
+def figures_drawn(draw: bool):
+    """Draw the outputs' figures, or skip them, inside the block (they take most of a small run's writing time)."""
+    token = _DRAW.set(bool(draw))
+    try:
+        yield
+    finally:
+        _DRAW.reset(token)
 
 
 def _atomic(path: Path, write) -> Path:

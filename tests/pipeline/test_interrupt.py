@@ -16,7 +16,8 @@ from bladetwin.cli import main
 #: The ideal twin: these tests check the pipeline's behaviour, not its accuracy on a realistic specimen.
 SMALL = ["--level", "coarse", "--blades", "4", "--grid", "3x7", "--known", "1,3", "--realism", "ideal"]
 # --rom paper: the ROM update is tested in test_run.py; here it would only add time.
-SETTINGS = ["--refine", "6", "--n", "5", "--rom", "paper", "--method", "knn"]
+# --no-figures: a resumed run's figures are its summary's; drawing the PNGs would only add time.
+SETTINGS = ["--refine", "6", "--n", "5", "--rom", "paper", "--method", "knn", "--no-figures"]
 
 pytestmark = pytest.mark.skipif(sys.platform == "win32", reason="POSIX signals")
 

@@ -22,6 +22,8 @@ SMALL = ["--level", "coarse", "--blades", "4", "--grid", "3x7", "--known", "1,3"
 #: The settings every command below shares (the stage commands' defaults are the run's; these only shorten it).
 # --rom paper: the ROM update is tested in test_run.py; here it would only add time.
 SETTINGS = ["--refine", "8", "--n", "6", "--rom", "paper", "--method", "knn"]
+#: `bladetwin run` here checks stores, scheduling and pages, not figures: it skips drawing them.
+RUN = ["run", "--no-figures"]
 
 
 @pytest.fixture(scope="module")
@@ -34,7 +36,7 @@ def camp(tmp_path_factory):
 
 def _run(root, camps, out, capsys) -> str:
     capsys.readouterr()
-    assert main(["run", *map(str, camps), *SETTINGS, "--out", str(out), "--cache-dir", str(root / "store")]) == 0
+    assert main([*RUN, *map(str, camps), *SETTINGS, "--out", str(out), "--cache-dir", str(root / "store")]) == 0
     return capsys.readouterr().err
 
 
@@ -127,7 +129,7 @@ class _Cells(HTMLParser):
 def test_several_campaigns_of_one_disk_share_its_models_and_get_an_index(camp, tmp_path, capsys):
     store = camp / "store2"
     capsys.readouterr()
-    assert main(["run", str(camp / "first"), str(camp / "second"), *SETTINGS, "--out", str(tmp_path / "both"),
+    assert main([*RUN, str(camp / "first"), str(camp / "second"), *SETTINGS, "--out", str(tmp_path / "both"),
                  "--cache-dir", str(store)]) == 0
     err = capsys.readouterr().err
     # the reduced models are built once for both campaigns, then found by the other's nodes
@@ -164,7 +166,7 @@ def test_scheduler_sends_each_campaign_graph_to_a_dask_cluster(camp, tmp_path, c
     _run(camp, [camp / "first"], tmp_path / "local", capsys)
     with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=False, dashboard_address=None) as c:
         capsys.readouterr()
-        assert main(["run", str(camp / "first"), str(camp / "second"), *SETTINGS, "--out", str(tmp_path / "dask"),
+        assert main([*RUN, str(camp / "first"), str(camp / "second"), *SETTINGS, "--out", str(tmp_path / "dask"),
                      "--cache-dir", str(camp / "store"), "--scheduler", c.scheduler_address]) == 0
     err = capsys.readouterr().err
     assert "Dask scheduler" in err
@@ -184,7 +186,7 @@ def test_a_damaged_store_entry_is_recomputed_and_named_in_the_summary(camp, tmp_
     for entry in entries:
         entry.write_bytes(b"")
     capsys.readouterr()
-    assert main(["run", str(camp / "first"), *SETTINGS, "--out", str(tmp_path / "o"), "--cache-dir", str(store)]) == 0
+    assert main([*RUN, str(camp / "first"), *SETTINGS, "--out", str(tmp_path / "o"), "--cache-dir", str(store)]) == 0
     err = capsys.readouterr().err
     named = [e for e in entries if f"warning: {e}" in err]
     assert "Traceback" not in err and named

@@ -34,6 +34,9 @@ PAPER_ROM = ["--rom", "paper", "--method", "knn"]
 #: The module runs the realistic twin end to end, with the paper's calibration: uncalibrated, the coarse model is
 #: off by more than the k-NN's 5 % window on some joints' feature modes and they keep the baseline (issue 44).
 RUN = ["run", "--calibrate"]
+#: Runs whose figures no test looks at skip drawing them (most of a warm small run's time); the cold run and the
+#: report tests draw them.
+NOFIG = ["--no-figures"]
 
 
 @pytest.fixture(scope="module")
@@ -181,13 +184,21 @@ def test_warm_rerun_recomputes_nothing_and_gives_the_same_answer(campaign, cold,
     root, camp = campaign
     out, s = cold
     capsys.readouterr()
-    assert main([*RUN, str(camp), *KNN_ONLY, "--out", str(root / "warm"), "--cache-dir", str(root / "cache")]) == 0
+    assert main([*RUN, str(camp), *KNN_ONLY, *NOFIG, "--out", str(root / "warm"), "--cache-dir",
+                 str(root / "cache")]) == 0
     err = capsys.readouterr().err
     # every stage node is read from the store: no EMA, no model build, no dataset, no solve
     assert "EMA " not in err and "  dataset" not in err and "solved" not in err, err
     assert "disk built" not in err and "0 read from the store" not in err, err
     w = json.loads((root / "warm" / "summary.json").read_text())
     assert w["joints"] == s["joints"] and w["cases"] == s["cases"]
+    # --no-figures: the same figures in summary.json, every table, no PNG, a report that says so
+    assert not list((root / "warm").glob("*.png")) and list(out.glob("*.png"))
+    assert [t["file"] for sec in w["sections"] for t in sec["tables"]] == \
+        [t["file"] for sec in s["sections"] for t in sec["tables"]]
+    assert not any(sec["figures"] for sec in w["sections"])
+    assert any("--no-figures" in n for n in w["notes"]) and not any("--no-figures" in n for n in s["notes"])
+    assert "--no-figures" in (root / "warm" / "report.html").read_text()
 
 
 def test_a_disk_the_cyclic_reduction_refused_falls_back_on_the_sparse_hybrid(campaign, cold, tmp_path, capsys):
@@ -204,7 +215,7 @@ def test_a_disk_the_cyclic_reduction_refused_falls_back_on_the_sparse_hybrid(cam
     (cyclic,) = (cache / "nodes" / "reduce_disk_all_slots").glob("*.npz")  # the cold run built it
     codec.save(cyclic, CyclicBuild(None, "the disk is not cyclic (marked by the test)"))
     capsys.readouterr()
-    assert main([*RUN, str(camp), *KNN_ONLY, *PAPER_ROM, "--workers", "1", "--out", str(tmp_path / "out"),
+    assert main([*RUN, str(camp), *KNN_ONLY, *PAPER_ROM, *NOFIG, "--workers", "1", "--out", str(tmp_path / "out"),
                  "--cache-dir", str(cache)]) == 0
     err = capsys.readouterr().err
     assert "full-assembly ROM 'baseline' solved" in err and "disk built" not in err, err
@@ -219,7 +230,7 @@ def test_a_disk_the_cyclic_reduction_refused_falls_back_on_the_sparse_hybrid(cam
 def test_refinement_improves_the_feature_match_and_is_cached(campaign, cold, capsys):
     root, camp = campaign
     out, s = cold
-    args = [*RUN, str(camp), *PAPER_ROM, "--cache-dir", str(root / "cache")]  # the default: refinement on
+    args = [*RUN, str(camp), *PAPER_ROM, *NOFIG, "--cache-dir", str(root / "cache")]  # the default: refinement on
     capsys.readouterr()
     assert main([*args, "--out", str(root / "refined")]) == 0
     err = capsys.readouterr().err
@@ -247,7 +258,8 @@ def test_campaign_without_truth_reports_cases_a_and_c_unavailable(campaign, cold
     lab = tmp_path / "lab"
     shutil.copytree(camp, lab, ignore=shutil.ignore_patterns("truth"))
     out = tmp_path / "out"
-    assert main([*RUN, str(lab), *KNN_ONLY, "--out", str(out), "--cache-dir", str(root / "cache"), "--quiet"]) == 0
+    assert main([*RUN, str(lab), *KNN_ONLY, *NOFIG, "--out", str(out), "--cache-dir", str(root / "cache"),
+                 "--quiet"]) == 0
     s = json.loads((out / "summary.json").read_text())
     assert s["cases"]["A"] is None and s["cases"]["C"] is None and s["cases"]["baseline"]["A"] is None
     assert set(s["ema"]["assembly"]) == {"n_modes", "modes"}  # no truth, no scores
@@ -417,8 +429,8 @@ def test_a_picks_file_replaces_the_automatic_selection(campaign, cold, tmp_path)
 
     _edit_manifest(lab, add_picks)
     out = tmp_path / "out"
-    assert main([*RUN, str(lab), *KNN_ONLY, *PAPER_ROM, "--out", str(out), "--cache-dir", str(root / "cache"),
-                 "--quiet"]) == 0
+    assert main([*RUN, str(lab), *KNN_ONLY, *PAPER_ROM, *NOFIG, "--out", str(out), "--cache-dir",
+                 str(root / "cache"), "--quiet"]) == 0
     s = json.loads((out / "summary.json").read_text())
     rows = list(csv_rows(out / "assembly_modes.csv"))
     assert len(rows) == len(chosen) < auto.model.n_modes

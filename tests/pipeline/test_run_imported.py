@@ -76,6 +76,7 @@ def runs(campaigns):
         # --no-calibrate: an imported model keeps its materials (bladetwin does not know them; the calibration
         # says so), so the native model must keep its own for the two runs to be the same
         assert main(["run", str(camp), "--no-calibrate", "--refine", "0", "--rom", "paper", "--method", "knn",
+                     "--no-figures",
                      "--out", str(o),
                      "--cache-dir", str(root / f"cache_{name}"), "--quiet"]) == 0
         out[name] = o, json.loads((o / "summary.json").read_text())
