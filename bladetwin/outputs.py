@@ -207,8 +207,9 @@ def _ema_section(res: RunResult, out: Path, notes: list[str]) -> dict:
         rows.append([name, t.type, t.file.name, _method_label(fit),
                      "picks file " + t.picks.name if fit.picked else "automatic", fit.model.n_modes,
                      float(np.min(q)) if q.size else float("nan"), float(np.mean(q)) if q.size else float("nan")])
-        diagram = t.type not in drawn or fit.picked  # one diagram per test type, and every hand-picked one
-        families = "+families" in (fit.model.method or "")
+        # one diagram per test type, and every hand-picked one; the UFF file is read only to draw them
+        diagram = drawing_figures() and (t.type not in drawn or fit.picked)
+        families = drawing_figures() and "+families" in (fit.model.method or "")
         frf = ema.read_uff(t.file) if diagram or families else None   # read once for both figures
         if diagram:
             drawn.add(t.type)

@@ -366,8 +366,8 @@ def block_krylov_modes(M, sigma: float, fac, k: int, block: int, *, tol: float =
     -------
     (vals, vecs) : ndarray, shape (k,), and ndarray, shape (n, k)
         ω² (rad/s)², ascending, and M-orthonormal shapes; None when the space reached min(n, 6k + 8·block)
-        vectors, or a block could not be made M-orthonormal, before converging (the caller then falls back to
-        ARPACK).
+        vectors before converging, or stopped growing (a new block inside it to round-off) before it held
+        k + block (the caller then falls back to ARPACK).
     """
     n = M.shape[0]
     cap = min(n, 6 * k + 8 * block)
@@ -415,8 +415,8 @@ def _m_orthonormalise(X, MX, V, MV, drop: float = 1e-12):
     whose Gram eigenvalue is below ``drop`` times the largest: such a block (a Krylov block near convergence,
     whose converged directions are round-off) has lost them already. The first pass leaves a well-conditioned
     block, which the second makes orthonormal to round-off (Cholesky alone lost 1e-8 on a block of condition
-    number 1e9). M X is carried through the projections (M (X − V c) = M X − M V c), so the caller applies M
-    once per block.
+    number 1e9). M X is carried through the projections (M (X − V c) = M X − M V c), so M is applied once
+    per call, by the caller.
 
     Returns
     -------
