@@ -14,7 +14,16 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from .report import MISSING, SUMMARY_NAME, UNAVAILABLE, ReportError, as_float, format_number, one_line, read_csv_table
+from .report_cells import (
+    MISSING,
+    SUMMARY_NAME,
+    UNAVAILABLE,
+    ReportError,
+    as_float,
+    format_number,
+    one_line,
+    read_csv_table,
+)
 from .rom_summary import CONTROL_TEXT
 
 __all__ = ["report_context"]

@@ -81,7 +81,7 @@ def test_every_json_output_is_one_document(uff_dir, tmp_path, capsys, monkeypatc
     runs[("identify", "predict")] = ["identify", "predict", *ident]
     runs[("identify", "validate")] = ["identify", "validate", *ident]
     runs[("run",)] = ["run", str(tmp_path / "lab"), "--out", str(tmp_path / "run"), "--n", "3", "--refine", "0",
-                       "--rom", "paper", "--method", "knn", "--quiet", "--json"]
+                       "--rom", "paper", "--method", "knn", "--no-figures", "--quiet", "--json"]
     assert set(runs) == _json_commands(), "a command with --json is not covered by this test"
     for key, argv in runs.items():
         assert main(argv) == 0, key
