@@ -29,6 +29,7 @@ __all__ = [
     "solve_modes",
     "solve_modes_factored",
     "block_krylov_modes",
+    "PARDISO_BLOCK",
     "nodal_diameters",
     "PARDISO_MIN_DOF",
 ]
@@ -41,6 +42,10 @@ log = logging.getLogger(__name__)
 # loads (pypardiso is imported lazily, after this module); a value the user set is kept. Cost: single
 # right-hand-side solves take 0.12 s instead of 0.06 s on the 171 k-DOF disk, blocks of 64 the same.
 os.environ.setdefault("MKL_CBWR", "AUTO")
+
+#: Vectors per block of :func:`block_krylov_modes` on a Pardiso factor: a solve of 16 right-hand sides costs
+#: about 2.5 single ones on the 171 k-DOF disk (docs/rom.md §4.4).
+PARDISO_BLOCK = 16
 
 #: Below this size SuperLU is faster than Pardiso here (measured: 8.4k-DOF blade 0.4 s vs 2.4 s, 11.5k-DOF
 #: coarse disk 0.6 s vs 1.9 s; the 171k-DOF default disk 57 s / 3.9 GB vs 36 s / 2.7 GB).
@@ -213,7 +218,9 @@ def solve_modes(
     disk's double nodal-diameter pairs. After the first solve, a cheap block test on the M-orthogonal
     complement of the modes found looks for anything left below the highest mode kept; only if it finds
     something does a deflated Lanczos run add the missed modes, and the check repeats. The result is
-    therefore complete whatever the start vector (docs/design.md §8.11).
+    therefore complete whatever the start vector (docs/design.md §8.11). On a Pardiso factorization the first
+    solve is the block Krylov run of :func:`block_krylov_modes` (``v0`` its first start vector), whose blocked
+    solves are cheaper; the same check follows.
 
     Parameters
     ----------
@@ -244,7 +251,10 @@ def solve_modes(
     fac = factorize((K - sigma * M).tocsr(), backend)
     try:
         start = _start_vector(n) if v0 is None else np.asarray(v0, dtype=np.float64)
-        vals, vecs = _complete_modes(K, M, sigma, fac, k, start, max_rigid)
+        first = None
+        if isinstance(fac, _PardisoFactor):  # blocked solves cost far less per vector there (§ block_krylov_modes)
+            first = block_krylov_modes(M, sigma, fac, k, PARDISO_BLOCK, v0=start)
+        vals, vecs = _complete_modes(K, M, sigma, fac, k, start, max_rigid, first=first)
     finally:
         fac.free()
     rigid = (vals < rigid_ratio * abs(sigma)) & (np.arange(vals.size) < max_rigid)
@@ -334,7 +344,7 @@ def _complete_modes(K, M, sigma: float, fac, k: int, v0: np.ndarray, max_rigid_h
 
 
 def block_krylov_modes(M, sigma: float, fac, k: int, block: int, *, tol: float = 1e-12, floor_tol: float = 1e-10,
-                       seed: int = 0) -> tuple[np.ndarray, np.ndarray] | None:
+                       seed: int = 0, v0: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray] | None:
     """The ``k`` lowest eigenpairs of (K, M) by block shift-invert Krylov, or None if it does not converge.
 
     The Krylov space of T = (K − σM)⁻¹ M from ``block`` deterministic vectors, kept M-orthonormal by two
@@ -361,6 +371,8 @@ def block_krylov_modes(M, sigma: float, fac, k: int, block: int, *, tol: float =
         A factorization of K − σM taking blocks of right-hand sides, shape (n, block).
     k, block : int
         Modes wanted; vectors per block.
+    seed, v0 : int, ndarray of shape (n,), optional
+        The start block is ``block`` standard normal columns from ``seed``; ``v0``, if given, replaces the first.
 
     Returns
     -------
@@ -374,7 +386,10 @@ def block_krylov_modes(M, sigma: float, fac, k: int, block: int, *, tol: float =
     V = np.empty((n, cap), order="F")
     MV = np.empty((n, cap), order="F")
     H = np.zeros((cap, cap))
-    X = np.asarray(fac.solve(M @ _start_block(n, block, seed))).reshape(n, block)
+    X0 = _start_block(n, block, seed)
+    if v0 is not None:
+        X0[:, 0] = v0
+    X = np.asarray(fac.solve(M @ X0)).reshape(n, block)
     nv, width, theta, Y, last = 0, 0, None, None, np.inf
     while True:
         Q, R_gram = _m_orthonormalise(X, M @ X, V[:, :nv], MV[:, :nv])

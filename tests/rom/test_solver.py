@@ -176,3 +176,14 @@ def test_m_orthonormalise_keeps_the_rank_of_a_nearly_dependent_block(clamped_dis
         assert Q.shape[1] == rank
         np.testing.assert_allclose(Q.T @ (M @ Q), np.eye(rank), atol=1e-12)
         assert np.abs(V.T @ (M @ Q)).max() < 1e-12
+
+
+@pytest.mark.skipif("pardiso" not in available_backends(), reason="pypardiso is not installed here")
+def test_solve_modes_on_pardiso_takes_the_block_run_and_agrees_with_arpack(coarse_bd):
+    """On a Pardiso factor `solve_modes` starts from the block Krylov run; on SuperLU from ARPACK. A free cyclic
+    disk gives both the same six rigid-body modes and the same doublets."""
+    disk = coarse_bd.disk
+    ref = solve_modes(disk.K, disk.M, 12, backend="superlu")
+    got = solve_modes(disk.K, disk.M, 12, backend="pardiso")
+    assert got.n_rigid == ref.n_rigid == 6
+    np.testing.assert_allclose(got.frequencies_hz, ref.frequencies_hz, rtol=1e-9)
