@@ -68,11 +68,13 @@ def stiffness_node(disk, blade, dataset: Dataset, features: Features, known: dic
 
 
 def update_node(disk, blade, dataset: Dataset, features: Features, delta_all: np.ndarray, bd,
-                stiffness: StiffnessFit | None, patterns: list[ContactPattern], **d1b) -> UpdatedROM:
+                stiffness: StiffnessFit | None, patterns: list[ContactPattern], warn: bool = True, **d1b) -> UpdatedROM:
     """The node: every tested blade's in-situ correction with its joint's pattern in ``patterns`` (one per slot).
 
     Blades without a disk–one-blade test keep Eq. 19 (ε = 0). Warnings name the blade and the mode whose data
-    the calibration cannot use (:func:`identify.rom_update.calibration_warnings`).
+    the calibration cannot use (:func:`identify.rom_update.calibration_warnings`); ``warn=False`` keeps them
+    quiet, for the controls (the baseline's and the true patterns' updates), which repeat the exported ROM's
+    warnings with other figures.
     """
     tracker = tracker_for(disk, blade, dataset)
     stiff = None if stiffness is None else stiffness.stiffness
@@ -87,11 +89,12 @@ def update_node(disk, blade, dataset: Dataset, features: Features, delta_all: np
     for k, j in enumerate(int(j) for j in features.joints):
         y = features.measured_hz[k]
         if not np.isfinite(y).any():
-            warnings.warn(f"blade {j}: its disk–one-blade test found none of the tracked modes: the blade keeps "
-                          "Eq. 19's free-test values, uncalibrated", UserWarning, stacklevel=2)
+            if warn:
+                warnings.warn(f"blade {j}: its disk–one-blade test found none of the tracked modes: the blade "
+                              "keeps Eq. 19's free-test values, uncalibrated", UserWarning, stacklevel=2)
             continue
         fit = fit_corrections(upd, patterns[j - 1], delta_all[j - 1], y, sigma[j])
-        for text in calibration_warnings(j, fit, free_hz):
+        for text in calibration_warnings(j, fit, free_hz) if warn else []:
             warnings.warn(text, UserWarning, stacklevel=2)
         eps[j - 1], done[j - 1], res[j - 1] = fit.correction, True, fit.residual_pct
         f_paper, _ = tracked_sensitivity(tracker, patterns[j - 1], delta_all[j - 1])
