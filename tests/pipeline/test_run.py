@@ -100,6 +100,11 @@ def test_summary_has_every_field_and_the_truth_confirms_the_identification(campa
         assert key in s
     assert set(s["timings_s"]) >= {"ema", "rom", "dataset", "identify", "validation", "report", "total"}
     assert [j["joint"] for j in s["joints"]] == list(range(1, 7))
+    # The ε calibration warns once per blade and mode, for the exported ROM only: its controls (the baseline's
+    # and the true patterns' updates) stay quiet instead of repeating it with other figures.
+    calib = [re.match(r"blade (\d+)(, free mode (\d+)|: its disk)", w) for w in s["warnings"]]
+    keys = [m.group(0) for m in calib if m]
+    assert len(keys) == len(set(keys)), s["warnings"]
     assert abs(s["step1"]["max_abs_eps_pct"]) <= 50 + 1e-9  # step 1 picks the nearest grid row
 
     truth = load_patterns(camp / "truth" / "patterns.npz")
