@@ -251,9 +251,7 @@ def solve_modes(
     fac = factorize((K - sigma * M).tocsr(), backend)
     try:
         start = _start_vector(n) if v0 is None else np.asarray(v0, dtype=np.float64)
-        first = None
-        if isinstance(fac, _PardisoFactor):  # blocked solves cost far less per vector there (§ block_krylov_modes)
-            first = block_krylov_modes(M, sigma, fac, k, PARDISO_BLOCK, v0=start)
+        first = _block_first(M, sigma, fac, k, _block_for(fac), v0=start)
         vals, vecs = _complete_modes(K, M, sigma, fac, k, start, max_rigid, first=first)
     finally:
         fac.free()
@@ -265,7 +263,7 @@ def solve_modes(
     return ModalSolution(freqs, vecs[:, elastic], vecs[:, rigid])
 
 
-def solve_modes_factored(K, M, n_modes: int, fac, *, sigma: float = 0.0, block: int = 0) -> ModalSolution:
+def solve_modes_factored(K, M, n_modes: int, fac, *, sigma: float = 0.0, block: int | None = None) -> ModalSolution:
     """Lowest ``n_modes`` modes of a pencil with no rigid-body modes, on a factorization the caller owns.
 
     For a component with a clamped boundary (K positive definite) the factorization of K itself (σ = 0)
@@ -281,19 +279,19 @@ def solve_modes_factored(K, M, n_modes: int, fac, *, sigma: float = 0.0, block: 
         A factorization of K − σM (:func:`factorize`); not freed here.
     sigma : float
         The shift of ``fac`` in (rad/s)².
-    block : int
+    block : int, optional
         0: ARPACK's single-vector Lanczos. Otherwise the block Krylov method of :func:`block_krylov_modes` with
         this many vectors per block, for a factorization whose blocked solves cost much less per vector than
         single ones (Pardiso: 16 vectors cost 0.35 s against 0.14 s for one on the 170 k-DOF disk interior).
+        Default: :data:`PARDISO_BLOCK` on a Pardiso factorization, 0 on any other.
     """
     n = K.shape[0]
     if not (isinstance(n_modes, (int, np.integer)) and 1 <= n_modes < n):
         raise ValueError(f"n_modes must be an integer in 1..{n - 1}, got {n_modes!r}")
+    block = _block_for(fac) if block is None else block
     if not (isinstance(block, (int, np.integer)) and block >= 0):
         raise ValueError(f"block must be a non-negative integer, got {block!r}")
-    first = block_krylov_modes(M, sigma, fac, int(n_modes), int(block)) if block else None
-    if block and first is None:
-        log.info("solve_modes_factored: the block Krylov run did not converge; ARPACK instead")
+    first = _block_first(M, sigma, fac, int(n_modes), int(block))
     vals, vecs = _complete_modes(K, M, sigma, fac, int(n_modes), _start_vector(n), 0, first=first)
     freqs = np.sqrt(np.clip(vals, 0.0, None)) / (2 * np.pi)
     return ModalSolution(freqs, vecs, np.zeros((n, 0)))
@@ -416,6 +414,22 @@ def block_krylov_modes(M, sigma: float, fac, k: int, block: int, *, tol: float =
             theta, Y = w[::-1][:k], U[:, ::-1][:, :k]
     log.debug("block_krylov_modes: %d modes from %d vectors", k, nv)
     return sigma + 1.0 / theta, V[:, :nv] @ Y
+
+
+def _block_for(fac) -> int:
+    """Vectors per block where blocked solves pay (a Pardiso factorization), else 0: ARPACK's single vectors."""
+    return PARDISO_BLOCK if isinstance(fac, _PardisoFactor) else 0
+
+
+def _block_first(M, sigma: float, fac, k: int, block: int, v0: np.ndarray | None = None):
+    """:func:`block_krylov_modes`' eigenpairs where ``block`` > 0, for :func:`_complete_modes` to check; None
+    (ARPACK then runs) where ``block`` is 0 or the block run did not converge (logged)."""
+    if not block:
+        return None
+    first = block_krylov_modes(M, sigma, fac, k, block, v0=v0)
+    if first is None:
+        log.info("block Krylov run did not converge (%d modes, blocks of %d); ARPACK instead", k, block)
+    return first
 
 
 def _start_block(n: int, block: int, seed: int) -> np.ndarray:
