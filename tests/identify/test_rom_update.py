@@ -38,8 +38,8 @@ def setup():
     return bd, tracker, parts, pats
 
 
-def _truth(tracker, parts, pattern, delta, eps):
-    sprung = with_contact_stiffness(tracker.blade, interface_compliance(parts, TRUE_K))
+def _truth(tracker, parts, pattern, delta, eps, stiffness=TRUE_K):
+    sprung = with_contact_stiffness(tracker.blade, interface_compliance(parts, stiffness))
     return tracked_sensitivity(replace(tracker, blade=sprung), pattern, delta + eps)[0]
 
 
@@ -90,6 +90,28 @@ def test_contact_stiffness_and_corrections_are_recovered_jointly(setup):
     assert fit.rms_residual_pct < 0.01
     with pytest.raises(IdentifyError, match="at least one filmed joint"):
         fit_contact_stiffness(tracker, parts, {})
+
+
+def test_a_stiffness_the_tests_cannot_see_is_held_and_the_fit_stops(setup):
+    """Joints rigid in shear (k_t = 1e6 k_n), and frequencies off by 0.3 % at random, far above the assumed σ
+    (as a real specimen's model error is). Past some k_t the frequencies no longer move, and Gauss–Newton's
+    steps on it are set by the large residuals alone: the fit holds k_t with its prior's uncertainty, finds
+    k_n, and stops before its last iteration."""
+    _, tracker, parts, pats = setup
+    m = tracker.blade.m
+    rigid_shear = ContactStiffness(TRUE_K.normal_n_per_m3, 1e6 * TRUE_K.normal_n_per_m3)
+    error = np.random.default_rng(5)
+    joints = {}
+    for j, pat in enumerate(pats[1:], start=1):
+        delta = np.r_[0.003 * j, np.zeros(m - 1)]
+        y = _truth(tracker, parts, pat, delta, np.zeros(m), rigid_shear)
+        y = y * (1 + 0.003 * error.standard_normal(y.size))
+        joints[j] = (pat, delta, y, noise_floor(np.full(y.size, np.nan)))
+    fit = fit_contact_stiffness(tracker, parts, joints, max_iter=30)
+    assert fit.stiffness.normal_n_per_m3 == pytest.approx(TRUE_K.normal_n_per_m3, rel=0.35)
+    assert fit.stiffness.tangential_n_per_m3 > 30 * TRUE_K.normal_n_per_m3
+    assert fit.log_std[1] == pytest.approx(np.log(1e3), rel=1e-6)  # the prior's: held, the data add nothing
+    assert fit.n_iter < 30
 
 
 def test_unusable_calibration_data_is_named_by_blade_and_mode():
