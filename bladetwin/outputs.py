@@ -7,25 +7,17 @@ output folder; :func:`bladetwin.report.render_report` then turns
 
 from __future__ import annotations
 
-import csv
-import io
 import json
-from collections.abc import Callable
 from datetime import UTC, datetime
 from pathlib import Path
 
-import matplotlib.pyplot as plt
 import numpy as np
-from matplotlib.figure import Figure
 
-import ema
-from ema.numbering import rom_modal_model
 from identify.plots import (
     plot_area_fractions,
     plot_centroids,
     plot_frequency_maps,
     plot_grid_error,
-    plot_mode_comparison,
     plot_sensitivity,
     plot_synthetic_patterns,
 )
@@ -33,216 +25,44 @@ from identify.validation import contact_area_fraction, geometric_validation
 from rom.pattern_io import save_patterns
 
 from .methods import FREQUENCY_HEADER, POSTERIOR_HEADER, methods_summary, posterior_frequency_rows, posterior_rows
+from .output_files import NO_FIGURES_NOTE, blank, save_figure, write_csv
 from .outputs_calibration import calibration_section, calibration_summary
+from .outputs_ema import ema_modes, ema_section
+from .outputs_rom import full_section, rom_section
 from .rom_summary import (
-    CASE_HEADER,
-    CORRECTION_HEADER,
-    FAMILY_HEADER,
-    case_rows,
-    correction_rows,
-    family_rows,
     rom_summary,
 )
 from .run_figures import (
     plot_bias,
-    plot_blade_deltas,
     plot_contact_probability,
     plot_d1b_features,
     plot_joint_patterns,
-    plot_rom_update,
 )
 from .stages import PAPER_TABLE8, RunResult
-from .stages.bias import MATCH_WINDOW
 from .user_warnings import emit, recording, unique
-from .util import atomic_savefig, atomic_write_text, drawing_figures, figures_drawn
+from .util import atomic_write_text, figures_drawn
 
 __all__ = ["write_outputs", "write_sensitivity", "summary_of"]
 
-CASE_TITLES = {"A": "Case A (k-NN): ROM with patterns identified from the numerical input vs ROM with the reference "
-                    "patterns",
-               "B": "Case B (k-NN): ROM with the identified patterns (experimental input, bias removed) vs measured",
-               "B_no_bias": "Case B without the bias correction vs measured",
-               "C": "Case C: ROM with the reference patterns vs measured",
-               "baseline_A": "Baseline vs the ROM with the reference patterns",
-               "baseline_B": "Baseline vs measured",
-               "posterior_A": "Case A with the contact posterior's answers (numerical input)",
-               "posterior_B": "Case B with the contact posterior's answers (experimental input, bias removed)",
-               "updated_A": "Case A, updated ROM: identified (numerical input) vs reference patterns",
-               "updated_B": "Case B, updated ROM (beyond Eq. 19): identified patterns vs measured",
-               "updated_C": "Case C, updated ROM: reference patterns vs measured"}
-
-
-def _csv(path: Path, header: list[str], rows: list[list]) -> str:
-    buf = io.StringIO()
-    w = csv.writer(buf, lineterminator="\n")
-    w.writerow(header)
-    for r in rows:
-        w.writerow([f"{v:.6g}" if isinstance(v, float | np.floating) else v for v in r])
-    atomic_write_text(path, buf.getvalue())
-    return path.name
-
-
-#: The report's note on a run without figures.
-NO_FIGURES_NOTE = "Figures were not drawn (bladetwin run --no-figures); rerun without it to draw them."
-
-
-def _fig(make: Callable[[], Figure], path: Path) -> str | None:
-    """``make()``'s figure saved to ``path`` (its name returned); nothing drawn and None under ``--no-figures``."""
-    if not drawing_figures():
-        return None
-    fig = make()
-    atomic_savefig(fig, path, dpi=110)
-    plt.close(fig)
-    return path.name
-
-
 def _label(i: int) -> str:
     return f"SP-{i + 1}"
-
-
-def _stabilization(name: str, test, fit, frf, out: Path) -> dict:
-    """One test's stabilization diagram, drawn from its stored diagram over its FRFs."""
-    from ema.plots import plot_stabilization
-
-    def draw():
-        fig = plot_stabilization(fit.diagram, frf, selected_hz=fit.model.frequencies_hz)
-        fig.axes[0].set_title(f"{test.file.name}: {_method_label(fit)}, "
-                              f"{'picked by hand' if fit.picked else 'automatic selection'}, "
-                              f"{fit.model.n_modes} modes")
-        return fig
-
-    families = " The dense mode families were then resolved by the rank-one residue fit (docs/ema.md): the " \
-               "modes it added need not sit on a stable column." if "+families" in (fit.model.method or "") else ""
-    return {"file": _fig(draw, out / f"stabilization_{name}.png"),
-            "caption": f"Stabilization diagram of {test.file.name} ({test.type} test), "
-                       f"{'hand-picked poles' if fit.picked else 'automatic selection'}.{families}"}
-
-
-def _families_figure(name: str, test, fit, frf, out: Path) -> list[dict]:
-    """The zoom on a test's dense windows (four modes or more) after the family fit, beside its diagram."""
-    from ema.family import family_windows
-    from ema.plots import plot_families
-
-    f = fit.model.frequencies_hz
-    windows = [w for w, _ in family_windows(fit.model.poles, frf, fit.model.band_hz or (f.min(), f.max()))
-               if np.count_nonzero((f >= w[0]) & (f <= w[1])) >= 4]
-    if not windows:
-        return []
-    return [{"file": _fig(lambda: plot_families(frf, fit.model, windows), out / f"families_{name}.png"),
-             "caption": f"Dense mode families of {test.file.name}: the RMS over all its FRFs, each divided by its "
-                        "own median in the window (so that modes seen by a few points show), measured (black) "
-                        "against the identified modal model (red, dashed), each mode a blue line."}]
-
-
-def _method_label(fit) -> str:
-    """The pole estimator, with "+FAMILIES" where the dense families were resolved (ema.fit(families=True))."""
-    return (fit.model.method or fit.method).upper()
-
-
-def _ema_tables(res: RunResult, out: Path, notes: list[str]) -> list[dict]:
-    bf, bd_ = res.blades.frequencies_hz, res.blades.deltas_pct
-    t_bf = _csv(out / "blade_frequencies.csv", ["blade"] + [f"mode {m + 1} (Hz)" for m in range(bf.shape[1])],
-                [[b + 1, *map(float, bf[b])] for b in range(bf.shape[0])])
-    t_bd = _csv(out / "blade_deltas.csv", ["blade"] + [f"δ mode {m + 1} (%)" for m in range(bd_.shape[1])],
-                [[b + 1, *map(float, bd_[b])] for b in range(bd_.shape[0])])
-    tables = [{"file": t_bd, "caption": "Blade mistuning δ (%), Eq. 37 (paper Table 2).", "heatmap": True},
-              {"file": t_bf, "caption": "Blade natural frequencies (Hz), modes tracked by MAC."}]
-    disk = [fit for t, fit in res.ema.values() if t.type == "disk"]
-    if disk:
-        try:
-            dm = ema.disk_modes(disk[0].model)
-        except ValueError as exc:  # e.g. disk points that are not one per sector: the run's answer stands
-            notes.append(f"Disk modes: nodal diameters not assigned ({exc}).")
-        else:
-            ema.write_table(dm, out / "disk_modes.csv")
-            tables.append({"file": "disk_modes.csv", "caption": "Disk modes with their nodal diameters."})
-    # Table 3: each joint's EMA frequencies matched one-to-one to the modes the dataset tracks (its blade
-    # points are numbered per joint, so the tests share only the disk points and cannot be paired by MAC).
-    mh = res.features.measured_hz
-    _csv(out / "d1b_frequencies.csv", ["joint"] + [f"mode {m + 1} (Hz)" for m in range(mh.shape[1])],
-         [[int(j), *map(_blank, mh[k])] for k, j in enumerate(res.joints)])
-    tables.append({"file": "d1b_frequencies.csv", "caption": "Disk–one-blade natural frequencies (Hz) per joint "
-                   "(paper Table 3): each joint's EMA modes matched to the tracked ROM modes within "
-                   f"{100 * MATCH_WINDOW:.0f} % (empty: not found)."})
-    asm = [fit for t, fit in res.ema.values() if t.type == "assembly"]
-    if asm:
-        m = asm[0].model
-        f_std = m.frequency_std_hz if m.frequency_std_hz is not None else np.full(m.n_modes, np.nan)
-        z_std = m.damping_std if m.damping_std is not None else np.full(m.n_modes, np.nan)
-        _csv(out / "assembly_modes.csv", ["mode", "frequency (Hz)", "σ frequency (Hz)", "damping (%)", "σ damping (%)"],
-             [[k + 1, float(m.frequencies_hz[k]), _blank(f_std[k]), float(100 * m.damping_ratio[k]),
-               _blank(100 * z_std[k])] for k in range(m.n_modes)])
-        tables.append({"file": "assembly_modes.csv", "caption": "Full-assembly modes found by the EMA, each with "
-                       "its standard deviation σ (the fit's linearised covariance, docs/ema.md; empty: its window "
-                       "is too short to tell)."})
-    return tables
-
-
-def _blank(v: float):
-    return "" if not np.isfinite(v) else float(v)
-
-
-def ema_modes(res: RunResult) -> dict:
-    """summary.json's ``ema``: per test, ``n_modes`` and its ``modes`` (Hz, damping ratio, standard deviations).
-
-    The full-assembly test of a virtual campaign adds its scores against the truth
-    (:func:`lab.judge.assembly_scores`: ``n_visible``, ``one_to_one_within_0p05pct``, ``mean_shape_mac``, …).
-    """
-    from lab.judge import assembly_scores, load_assembly_truth
-
-    out = {}
-    for name, (t, fit) in res.ema.items():
-        out[name] = {"n_modes": int(fit.model.n_modes), "modes": fit.model.as_records()}
-        if t.type == "assembly":
-            truth = load_assembly_truth(res.campaign.truth_dir)
-            if truth is not None:
-                out[name] |= assembly_scores(fit.model, truth)
-    return out
-
-
-def _ema_section(res: RunResult, out: Path, notes: list[str]) -> dict:
-    rows, figs, drawn = [], [], set()
-    for name, (t, fit) in res.ema.items():
-        q = fit.fit_quality
-        rows.append([name, t.type, t.file.name, _method_label(fit),
-                     "picks file " + t.picks.name if fit.picked else "automatic", fit.model.n_modes,
-                     float(np.min(q)) if q.size else float("nan"), float(np.mean(q)) if q.size else float("nan")])
-        # one diagram per test type, and every hand-picked one; the UFF file is read only to draw them
-        diagram = drawing_figures() and (t.type not in drawn or fit.picked)
-        families = drawing_figures() and "+families" in (fit.model.method or "")
-        frf = ema.read_uff(t.file) if diagram or families else None   # read once for both figures
-        if diagram:
-            drawn.add(t.type)
-            figs.append(_stabilization(name, t, fit, frf, out))
-        if families:
-            figs += _families_figure(name, t, fit, frf, out)
-    t_quality = _csv(out / "ema_quality.csv", ["test", "type", "file", "method", "selection", "modes",
-                                               "fit quality min", "fit quality mean"], rows)
-    figs.append({"file": _fig(lambda: plot_blade_deltas(res.blades.deltas_pct), out / "blade_deltas.png"),
-                 "caption": "Blade mistuning δ of every blade and tracked mode (Eq. 37, paper Table 2)."})
-    tables = [{"file": t_quality, "caption": "EMA of every test: pole estimator, selection, modes found and fit "
-               "quality (1 − relative squared error of the synthesis)."}] + _ema_tables(res, out, notes)
-    return {"id": "ema", "title": "Experimental modal analysis",
-            "text": [f"{len(res.ema)} UFF files, fitted with LSRF and automatic pole selection unless a picks file "
-                     "is named for the test in campaign.toml. One stabilization diagram per test type is shown."],
-            "figures": figs, "tables": tables}
 
 
 def write_sensitivity(sens, out: Path, *, plot: bool = True) -> list[str]:
     """The sensitivity table and its figures (paper Figs. 15–16) in ``out``; returns the files' names."""
     rows = [[m + 1, float(sens.mean_hz[m]), float(sens.std_hz[m]), float(sens.std_rel_pct[m]),
              int(m in sens.feature_modes)] for m in range(sens.n_modes)]
-    files = [_csv(out / "sensitivity.csv", ["mode", "mean_hz", "std_hz", "std_pct", "feature"], rows)]
+    files = [write_csv(out / "sensitivity.csv", ["mode", "mean_hz", "std_hz", "std_pct", "feature"], rows)]
     if plot:
-        files += [_fig(lambda: plot_sensitivity(sens), out / "sensitivity.png"),
-                  _fig(lambda: plot_frequency_maps(sens), out / "frequency_maps.png")]
+        files += [save_figure(lambda: plot_sensitivity(sens), out / "sensitivity.png"),
+                  save_figure(lambda: plot_frequency_maps(sens), out / "frequency_maps.png")]
     return files
 
 
 def _patterns_section(res: RunResult, out: Path) -> dict:
     films = res.films
     table, sens_png, maps_png = write_sensitivity(res.sensitivity, out)
-    figs = [{"file": _fig(lambda: plot_synthetic_patterns(res.synthetic, [a for a, _ in films.values()],
+    figs = [{"file": save_figure(lambda: plot_synthetic_patterns(res.synthetic, [a for a, _ in films.values()],
                                                   [b for _, b in films.values()],
                                                   known_labels=[f"joint {j}" for j in films]), out / "patterns.png"),
              "caption": "Film maps of the known joints and the synthetic patterns SP-1… drawn by the PCA sampler "
@@ -301,15 +121,15 @@ def _geometric(res: RunResult, out: Path, figs: list, tables: list, text: list) 
                "centroid_distance_mm": {"identified": float(1e3 * np.nanmean(geo.centroid_distance)),
                                         "baseline": float(1e3 * np.nanmean(geo_b.centroid_distance))}}
     jl = [f"joint {j}" for j in unknown]
-    figs.append({"file": _fig(lambda: plot_area_fractions(geo, joint_labels=jl), out / "area_fractions.png"),
+    figs.append({"file": save_figure(lambda: plot_area_fractions(geo, joint_labels=jl), out / "area_fractions.png"),
                  "caption": "Contact area fraction of the identified and reference patterns at the unfilmed joints "
                             "(Eq. 41, paper Figs. 21, 25)."})
-    figs.append({"file": _fig(lambda: plot_centroids(geo, [ref[j - 1] for j in unknown], res.bd,
+    figs.append({"file": save_figure(lambda: plot_centroids(geo, [ref[j - 1] for j in unknown], res.bd,
                                              [res.final_patterns[j - 1] for j in unknown], joint_labels=jl),
                               out / "centroids.png"),
                  "caption": "Contact centroids, identified (blue) and reference (red), best and worst joint "
                             "(Eq. 42, paper Figs. 22, 26)."})
-    _csv(out / "geometric_validation.csv", ["joint", "area error L (pp)", "area error R (pp)",
+    write_csv(out / "geometric_validation.csv", ["joint", "area error L (pp)", "area error R (pp)",
                                              "centroid distance L (mm)", "centroid distance R (mm)"],
          [[j, *map(float, geo.area_error_pct[k]), *map(float, 1e3 * geo.centroid_distance[k])]
           for k, j in enumerate(unknown)])
@@ -325,27 +145,27 @@ def _geometric(res: RunResult, out: Path, figs: list, tables: list, text: list) 
 def _identification_section(res: RunResult, out: Path) -> tuple[dict, list, dict | None]:
     c, feat = res.campaign, list(res.dataset.feature_modes)
     bias_pct, spread_pct = 100 * res.features.bias, 100 * res.features.spread
-    t_bias = _csv(out / "bias.csv", ["mode", "bias (%)", "spread (%)", "feature"],
+    t_bias = write_csv(out / "bias.csv", ["mode", "bias (%)", "spread (%)", "feature"],
                   [[m + 1, float(bias_pct[m]), float(spread_pct[m]), int(m in feat)] for m in range(len(bias_pct))])
     eps = res.step1.epsilon_pct
-    t_eps = _csv(out / "step1_epsilon.csv", ["joint"] + [f"ε δ{m + 1} (%)" for m in range(eps.shape[1])],
+    t_eps = write_csv(out / "step1_epsilon.csv", ["joint"] + [f"ε δ{m + 1} (%)" for m in range(eps.shape[1])],
                  [[int(j), *map(float, eps[k])] for k, j in enumerate(res.joints)])
     joints, rows = zip(*(_joint_row(res, j) for j in range(1, c.n_blades + 1)), strict=True)
-    t_pred = _csv(out / "identified_patterns.csv", ["joint", "source", "pattern L", "pattern R", "k-NN distance",
+    t_pred = write_csv(out / "identified_patterns.csv", ["joint", "source", "pattern L", "pattern R", "k-NN distance",
                                                      "outside the synthetic family (%)", "beyond 2x the ROM scatter",
                                                      "area L (%)", "area R (%)", "reference area L (%)",
                                                      "reference area R (%)"], list(rows))
     save_patterns(out / "identified_patterns.npz", res.final_patterns)
     names = [f"{s['joint']}: {'film' if s['joint'] in res.known else s['pattern_L'] + '/' + s['pattern_R']}"
              for s in joints]
-    figs = [{"file": _fig(lambda: plot_bias(bias_pct, spread_pct, feat), out / "bias.png"),
+    figs = [{"file": save_figure(lambda: plot_bias(bias_pct, spread_pct, feat), out / "bias.png"),
              "caption": "Per-mode ROM bias estimated on the filmed joints; removed from every joint's measured "
                         "features before the k-NN."},
-            {"file": _fig(lambda: plot_grid_error(res.step1, blade_labels=[f"joint {j}" for j in res.joints]),
+            {"file": save_figure(lambda: plot_grid_error(res.step1, blade_labels=[f"joint {j}" for j in res.joints]),
                           out / "step1_epsilon.png"),
              "caption": "Step 1 of the k-NN: normalized δ grid error ε (Eq. 40, paper Fig. 19); |ε| ≤ 50 % means "
                         "the nearest grid row was chosen."},
-            {"file": _fig(lambda: plot_joint_patterns(res.final_patterns, names, res.reference),
+            {"file": save_figure(lambda: plot_joint_patterns(res.final_patterns, names, res.reference),
                           out / "identified_patterns_map.png"),
              "caption": "Identified pattern of every joint (films at the known joints)"
                         + (", beside the reference pattern (paper Tables 6–7)." if res.reference is not None else ".")}]
@@ -370,7 +190,7 @@ def _d1b_section(res: RunResult, out: Path) -> tuple[dict, dict]:
     header = ["joint", "source"] + [f"measured mode {m} (Hz)" for m in fm] + [f"identified mode {m} (Hz)" for m in fm]
     body = [[r["joint"], r["source"], *map(float, r["measured_hz"]), *map(float, r["identified_hz"])] for r in rows_d]
     title = "identified ROM (bias added back) vs measured"
-    figs = [{"file": _fig(lambda: plot_d1b_features(jj, meas, ident, fm, title=title),
+    figs = [{"file": save_figure(lambda: plot_d1b_features(jj, meas, ident, fm, title=title),
                           out / "d1b_experimental.png"),
              "caption": "Disk–one-blade feature modes: the ROM with each joint's identified pattern (its bias added "
                         "back) against the measured frequencies (paper Fig. 27)."}]
@@ -382,37 +202,20 @@ def _d1b_section(res: RunResult, out: Path) -> tuple[dict, dict]:
                                                                          for m in fm]
         body = [b + [*map(float, r["reference_hz"]), *map(float, r["numerical_hz"])]
                 for b, r in zip(body, rows_d, strict=True)]
-        figs.append({"file": _fig(lambda: plot_d1b_features(jj, refh, num, fm, title="numerical input: identified vs "
-                                                    "reference pattern (ROM)"), out / "d1b_numerical.png"),
+        title = "numerical input: identified vs reference pattern (ROM)"
+        figs.append({"file": save_figure(lambda: plot_d1b_features(jj, refh, num, fm, title=title),
+                                         out / "d1b_numerical.png"),
                      "caption": "Disk–one-blade feature modes on the numerical input: ROM with the identified pattern "
                                 "against the ROM with the reference pattern (paper Fig. 23)."})
         unknown = [k for k, r in enumerate(rows_d) if r["source"] != "film"]
         if unknown:
             summary["numerical_mean_abs_df_pct"] = float(np.mean(np.abs(num[unknown] / refh[unknown] - 1)) * 100)
-    _csv(out / "d1b_validation.csv", header, body)
+    write_csv(out / "d1b_validation.csv", header, body)
     return {"id": "d1b", "title": "Disk–one-blade validation",
             "text": [f"Feature modes {fm}. Mean |Δf| of the identified ROM against the measurement: "
                      f"{summary['experimental_mean_abs_df_pct']:.3f} %."],
             "figures": figs, "tables": [{"file": "d1b_validation.csv", "caption": "Feature frequencies per joint."}]}, \
         summary
-
-
-def _table8_rows(cases: dict) -> list[list]:
-    rows = []
-    for key, label in (("A", "Case A (k-NN)"), ("B", "Case B (k-NN)"), ("B_no_bias", "Case B (k-NN), no bias "
-                                                                                   "correction"), ("C", "Case C")):
-        v, p = cases[key], PAPER_TABLE8.get(key, {})
-        rows.append([label, *(("unavailable",) * 3 if v is None else (v["mean_abs_df_pct"], v["mean_mac"],
-                                                                       v["n_modes"])),
-                     p.get("mean_abs_df_pct", ""), p.get("mean_mac", "")])
-    for key, v in (cases.get("posterior") or {}).items():
-        rows.append([f"Case {key} (posterior)", *(("unavailable",) * 3 if v is None else (
-            v["mean_abs_df_pct"], v["mean_mac"], v["n_modes"])), "", ""])
-    for key in ("A", "B"):
-        v = cases["baseline"][key]
-        rows.append([f"baseline (as Case {key})", *(("unavailable",) * 3 if v is None
-                                                     else (v["mean_abs_df_pct"], v["mean_mac"], v["n_modes"])), "", ""])
-    return rows
 
 
 def _posterior_section(res: RunResult, out: Path, methods: dict) -> list[dict]:
@@ -427,11 +230,11 @@ def _posterior_section(res: RunResult, out: Path, methods: dict) -> list[dict]:
         columns["k-NN"] = [res.answers["knn"]["experimental"][j - 1] for j in joints]
     if res.reference is not None:
         columns["reference"] = [res.reference[j - 1] for j in joints]
-    fig = _fig(lambda: plot_contact_probability([posts[j].probability for j in joints], labels, columns),
+    fig = save_figure(lambda: plot_contact_probability([posts[j].probability for j in joints], labels, columns),
                out / "contact_probability.png")
-    _csv(out / "posterior_contact.csv", POSTERIOR_HEADER, [[_blank(v) for v in r] for r in posterior_rows(res)])
-    _csv(out / "posterior_frequencies.csv", FREQUENCY_HEADER,
-         [[_blank(v) for v in r] for r in posterior_frequency_rows(res)])
+    write_csv(out / "posterior_contact.csv", POSTERIOR_HEADER, [[blank(v) for v in r] for r in posterior_rows(res)])
+    write_csv(out / "posterior_frequencies.csv", FREQUENCY_HEADER,
+         [[blank(v) for v in r] for r in posterior_frequency_rows(res)])
     s = res.posterior["surrogate"]
     m = methods.get("posterior", {})
     text = ["Each unfilmed joint's contact as a posterior over a continuous pattern family (the films' PCA and the "
@@ -466,78 +269,6 @@ def _posterior_section(res: RunResult, out: Path, methods: dict) -> list[dict]:
                          "the ROM's frequency over the posterior (model error not included)."}]}]
 
 
-def _full_section(res: RunResult, out: Path) -> dict:
-    figs = []
-    for key, comp in res.validation.comparisons.items():
-        figs.append({"file": _fig(lambda c=comp, k=key: plot_mode_comparison(c, title=CASE_TITLES[k]),
-                                  out / f"full_{key}.png"),
-                     "caption": CASE_TITLES[key] + " (paper Figs. 24, 28)."})
-        _csv(out / f"full_pairs_{key}.csv", ["reference mode", "predicted mode", "f reference (Hz)",
-                                             "f predicted (Hz)", "Δf (%)", "MAC"],
-             [[int(a) + 1, int(b) + 1, float(fa), float(fb), float(e), float(m)] for (a, b), fa, fb, e, m in
-              zip(comp.pairs, comp.freq_ref_hz, comp.freq_pred_hz, comp.freq_error_pct, comp.mac, strict=True)])
-    tables = [{"file": _csv(out / "table8.csv", ["case", "mean |Δf| (%)", "mean MAC", "modes", "paper |Δf| (%)",
-                                                 "paper MAC"], _table8_rows(res.cases)),
-               "caption": "Paper Table 8 with the baseline rows: the mean known pattern at every unfilmed joint."}]
-    exported = next(k for k in ("updated", "posterior", "identified") if k in res.full)
-    answer = "the contact posterior" if res.options.posterior else "the k-NN"
-    rom = "updated ROM (beyond Eq. 19)" if exported == "updated" else "paper's ROM"
-    ema.write_modes(out / "identified_rom_modes.uff", rom_modal_model(res.full[exported]),
-                    id1=f"bladetwin identified {rom}, {answer}, campaign {res.campaign.name}")
-    return {"id": "full", "title": "Full bladed disk: Cases A, B, C (Table 8)",
-            "text": ["Case A: ROM with patterns identified from the numerical input against the ROM with the "
-                     "reference patterns. Case B: ROM with the patterns identified from the measurements against the "
-                     "measured modes. Case C: ROM with the reference patterns against the measured modes (the model "
-                     "error). The baseline gives every unfilmed joint the majority pattern of the films. The "
-                     "identified ROM's modes are in identified_rom_modes.uff (UFF 55, rig DOF labels): the "
-                     f"{rom} with {answer}'s answers."],
-            "figures": figs, "tables": tables}
-
-
-def _rom_section(res: RunResult, out: Path, rom: dict | None) -> list[dict]:
-    """The updated ROM beside the paper's: Cases A, B, C, its parameters, the family-wise view (empty if off)."""
-    if rom is None:
-        return []
-    upd = res.rom_update["answer"]
-    modes = np.flatnonzero(np.any(upd.corrections != 0, axis=0))
-    freq = upd.frequency_correction_pct(res.delta_all)[:, modes]
-    fig = _fig(lambda: plot_rom_update(freq, [f"free mode {i + 1} ({upd.free_hz[i]:.0f} Hz)" for i in modes],
-                               res.validation.families), out / "rom_update.png")
-    def cells(rows):  # a figure that does not exist (None) is an empty cell
-        return [["" if v is None else v for v in r] for r in rows]
-
-    tables = [{"file": _csv(out / "rom_cases.csv", CASE_HEADER, cells(case_rows(rom))),
-               "caption": "Cases A, B and C with the paper's ROM and with the updated ROM."},
-              {"file": _csv(out / "rom_corrections.csv", CORRECTION_HEADER, cells(correction_rows(res))),
-               "caption": "Each blade's in-situ corrections and its disk-one-blade residuals, both ROMs."},
-              {"file": _csv(out / "rom_families.csv", FAMILY_HEADER, family_rows(res.validation.families)),
-               "caption": "Family by family: frequency error, MAC and subspace correlation (principal angles)."}]
-    p = rom["updated"]["parameters"]
-    k = p["contact_stiffness"]
-    stiff = ("rigid ties (no filmed joint with a disk-one-blade test)" if k is None else
-             f"k_n = {k['normal_n_per_m3']:.3g} N/m³, k_t = {k['tangential_n_per_m3']:.3g} N/m³ (fitted on joints "
-             f"{', '.join(str(j) for j in k['fitted_on_joints'])}; the data resolve ln k to ±"
-             f"{max(k['log_std']):.2f}, an effective stiffness of this ROM: its own model error is absorbed into "
-             "it, so the true joint's may lie further off)")
-    r = p["d1b_rms_residual_pct"]
-    text = ["The paper's ROM carries each blade's free-test deltas into the assembly (Eq. 19) and ties contacting "
-            "nodes rigidly. The updated ROM (beyond the paper, docs/equations.md) adds per-blade in-situ corrections "
-            "of the free modes each disk-one-blade test sees, and a contact stiffness for every joint, both fitted on "
-            "the disk-one-blade tests only: the full-assembly test is never used in the fit, it is the validation. "
-            "The exported ROM (identified_rom_modes.uff) is the updated one.",
-            f"Contact stiffness: {stiff}. Disk-one-blade RMS residual over the tracked modes: paper's ROM "
-            f"{r['paper']:.3f} %, updated ROM {r['updated']:.3f} %."]
-    for kind in ("paper", "updated"):
-        b = rom[kind]["cases"].get("B")
-        if b:
-            text.append(f"Case B, {kind} ROM: mean |Δf| {b['mean_abs_df_pct']:.3f} %, mean MAC {b['mean_mac']:.3f} "
-                        f"({b['n_modes']} modes).")
-    return [{"id": "rom_update", "title": "The ROM updated beyond Eq. 19", "text": text,
-             "figures": [{"file": fig, "caption": "Left: in-situ corrections. Right: each measured mode family's "
-                                                  "subspace correlation with the ROM's modes in its band."}],
-             "tables": tables}]
-
-
 def write_outputs(res: RunResult, out: Path, *, command: str = "bladetwin run", figures: bool = True) -> dict:
     """Write every output of a run into ``out`` and return the summary (also written to summary.json).
 
@@ -547,14 +278,14 @@ def write_outputs(res: RunResult, out: Path, *, command: str = "bladetwin run", 
     out.mkdir(parents=True, exist_ok=True)
     notes: list[str] = [] if figures else [NO_FIGURES_NOTE]
     with recording() as texts, figures_drawn(figures):  # a figure's or a table's warning: to summary.json too
-        sections = [_ema_section(res, out, notes), calibration_section(res, out, _csv), _patterns_section(res, out)]
+        sections = [ema_section(res, out, notes), calibration_section(res, out, write_csv), _patterns_section(res, out)]
         sections = [x for x in sections if x is not None]
         ident, joints, geo = _identification_section(res, out)
         d1b, d1b_summary = _d1b_section(res, out)
         methods = methods_summary(res)
         rom = rom_summary(res)
-        sections += [ident, *_posterior_section(res, out, methods), d1b, *_rom_section(res, out, rom),
-                     _full_section(res, out)]
+        sections += [ident, *_posterior_section(res, out, methods), d1b, *rom_section(res, out, rom),
+                     full_section(res, out)]
     for sec in sections:  # a figure not drawn is not listed
         sec["figures"] = [f for f in sec.get("figures", []) if f.get("file")]
     for text in unique(texts):

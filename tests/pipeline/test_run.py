@@ -22,6 +22,7 @@ from bladetwin.campaign import read_campaign
 from bladetwin.cli import main
 from bladetwin.stages import RunOptions
 from bladetwin.stages.patterns import film_patterns, read_films
+from identify.rom_update import ROM_ERROR
 from identify.validation import contact_area_fraction
 from rom.pattern_io import load_patterns
 
@@ -401,10 +402,14 @@ def test_the_rom_update_never_reads_the_assembly_test(campaign, cold, tmp_path):
     # Had the assembly test entered the fit, they would move by a share of their standard deviation.
     a, b = got["rom_update/stiffness"], ref["rom_update/stiffness"]
     k = lambda s: np.log([s.stiffness.normal_n_per_m3, s.stiffness.tangential_n_per_m3])  # noqa: E731
+    # ε is a relative eigenvalue fitted to frequencies no closer than ROM_ERROR: its standard deviation is at
+    # least 2 ROM_ERROR, and 5 % of it is the tolerance (the stiffness fit can end on a shallow valley of k_n
+    # and ε, where round-off moves ε by about 1e-6).
     assert np.all(np.abs(k(a) - k(b)) <= 1e-3 * b.log_std)
-    np.testing.assert_allclose(a.corrections, b.corrections, rtol=0, atol=1e-6)
+    tol = 0.05 * 2 * ROM_ERROR
+    np.testing.assert_allclose(a.corrections, b.corrections, rtol=0, atol=tol)
     np.testing.assert_allclose(got["rom_update/answer"].corrections, ref["rom_update/answer"].corrections,
-                               rtol=0, atol=1e-6)
+                               rtol=0, atol=tol)
 
 
 def test_a_picks_file_replaces_the_automatic_selection(campaign, cold, tmp_path):
