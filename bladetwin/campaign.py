@@ -7,7 +7,6 @@ problem with a manifest is one line naming the file, the field and what was expe
 from __future__ import annotations
 
 import contextvars
-import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -17,9 +16,13 @@ from .manifest_keys import (
     MASS_KEYS,
     TEST_KEYS,
     TOP_KEYS,
+    CampaignError,
+    check_keys,
     film_meta_message,
     mass_message,
-    unknown_key_message,
+    need_field,
+    read_grid,
+    read_toml,
 )
 
 __all__ = ["Campaign", "CampaignError", "FilmEntry", "TestEntry", "read_campaign", "model_family",
@@ -34,10 +37,6 @@ ACADEMIC_MODEL_KEYS = ("family", "level", "n_blades", "grid")
 IMPORTED_MODEL_KEYS = ("format", "units", "disk", "blade", "placement", "grids")
 # Keys of [model.disk] / [model.blade] that name files.
 _COMPONENT_FILE_KEYS = ("K", "M", "file", "archive", "dofmap", "coords", "node_sets")
-
-
-class CampaignError(ValueError):
-    """A campaign folder or manifest that cannot be used, with a one-line message for the user."""
 
 
 @dataclass(frozen=True)
@@ -141,35 +140,6 @@ class Campaign:
         return d if d.is_dir() else None
 
 
-def _known(table: dict, allowed: tuple[str, ...], where: str) -> None:
-    if (msg := unknown_key_message(table, allowed, where)) is not None:
-        raise CampaignError(msg)
-
-
-def _need(table: dict, key: str, where: str, kind: type | tuple[type, ...]):
-    if key not in table:
-        raise CampaignError(f"{where}: missing field {key!r}")
-    value = table[key]
-    if not isinstance(value, kind) or isinstance(value, bool):
-        raise CampaignError(f"{where}: field {key!r} = {value!r} has the wrong type")
-    return value
-
-
-def _read_toml(path: Path) -> dict:
-    """The TOML document at ``path``; CampaignError in one line (file and parser message) if it is not TOML."""
-    try:
-        return tomllib.loads(path.read_text(encoding="utf-8"))
-    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
-        raise CampaignError(f"{path}: not valid TOML ({' '.join(str(exc).split())})") from None
-
-
-def _grid(value, where: str) -> tuple[int, int]:
-    if (not isinstance(value, list) or len(value) != 2
-            or not all(isinstance(v, int) and not isinstance(v, bool) and v >= 2 for v in value)):
-        raise CampaignError(f"{where}: grid = {value!r}, expected [rows, cols] with integers ≥ 2")
-    return int(value[0]), int(value[1])
-
-
 #: Set by ``read_campaign(..., allow_outside=True)`` (``--allow-outside``) while it reads one manifest.
 _ALLOW_OUTSIDE = contextvars.ContextVar("allow_outside", default=False)
 
@@ -239,7 +209,7 @@ def imported_model_table(model: dict, root: Path, where: str) -> tuple[dict, Pat
     path = (root / rel).resolve()
     if not path.is_file():
         raise CampaignError(f"{where}: [model] file = {rel!r}: {path} not found")
-    doc = _read_toml(path)
+    doc = read_toml(path)
     table = doc.get("model")
     if not isinstance(table, dict):
         raise CampaignError(f"{path}: no [model] table (expected the model.toml of `bladetwin fe export`)")
@@ -309,16 +279,16 @@ def _read_campaign(root: Path) -> Campaign:
     path = root / "campaign.toml"
     if not path.is_file():
         raise CampaignError(f"{root}: no campaign.toml (docs/campaign.md describes the manifest)")
-    doc = _read_toml(path)
-    _known(doc, TOP_KEYS, str(path))
-    head = _need(doc, "campaign", str(path), dict)
+    doc = read_toml(path)
+    check_keys(doc, TOP_KEYS, str(path))
+    head = need_field(doc, "campaign", str(path), dict)
     where = f"{path} [campaign]"
-    _known(head, CAMPAIGN_KEYS, where)
-    n_blades = _need(head, "n_blades", where, int)
+    check_keys(head, CAMPAIGN_KEYS, where)
+    n_blades = need_field(head, "n_blades", where, int)
     if n_blades < 2:
         raise CampaignError(f"{where}: n_blades = {n_blades}, expected ≥ 2")
-    grid = _grid(_need(head, "grid", where, list), where)
-    known = _need(head, "known_joints", where, list)
+    grid = read_grid(need_field(head, "grid", where, list), where)
+    known = need_field(head, "known_joints", where, list)
     if not all(isinstance(k, int) and not isinstance(k, bool) and 1 <= k <= n_blades for k in known):
         raise CampaignError(f"{where}: known_joints = {known!r}, expected joints in 1..{n_blades}")
     if len(set(known)) != len(known):
@@ -340,9 +310,9 @@ def _read_campaign(root: Path) -> Campaign:
         w = f"{path} films[{k}]"
         if not isinstance(f, dict):
             raise CampaignError(f"{w}: expected a table")
-        _known(f, FILM_KEYS, w)
-        joint = _need(f, "joint", w, int)
-        flank = _need(f, "flank", w, str)
+        check_keys(f, FILM_KEYS, w)
+        joint = need_field(f, "joint", w, int)
+        flank = need_field(f, "flank", w, str)
         if not 1 <= joint <= n_blades or flank not in ("L", "R"):
             raise CampaignError(f"{w}: joint {joint!r} flank {flank!r}, expected 1..{n_blades} and L or R")
         meta = {key: v for key, v in f.items() if key not in ("joint", "flank", "file")}
@@ -370,7 +340,7 @@ def _read_masses(doc: dict, path: Path, n_blades: int) -> dict:
     where = f"{path} [masses]"
     if not isinstance(masses, dict):
         raise CampaignError(f"{where}: expected a table with disk_kg and/or blade_kg")
-    _known(masses, MASS_KEYS, where)
+    check_keys(masses, MASS_KEYS, where)
     if (msg := mass_message(masses, where, n_blades)) is not None:
         raise CampaignError(msg)
     return dict(masses)
@@ -381,16 +351,16 @@ def _read_tests(doc: dict, path: Path, root: Path, n_blades: int, default_units:
     second one is a manifest mistake that would otherwise silently replace the first)."""
     tests: list[TestEntry] = []
     seen: dict[tuple, int] = {}
-    for k, t in enumerate(_need(doc, "tests", str(path), list)):
+    for k, t in enumerate(need_field(doc, "tests", str(path), list)):
         w = f"{path} tests[{k}]"
         if not isinstance(t, dict):
             raise CampaignError(f"{w}: expected a table")
-        _known(t, TEST_KEYS, w)
-        kind = _need(t, "type", w, str)
+        check_keys(t, TEST_KEYS, w)
+        kind = need_field(t, "type", w, str)
         if kind not in TEST_TYPES:
             raise CampaignError(f"{w}: type = {kind!r}, expected one of {', '.join(TEST_TYPES)}")
         key = {"blade": "blade", "d1b": "joint"}.get(kind)  # the field naming the test's blade or joint
-        index = None if key is None else _need(t, key, w, int)
+        index = None if key is None else need_field(t, key, w, int)
         if key is not None and not 1 <= index <= n_blades:
             raise CampaignError(f"{w}: {key} = {index}, expected 1..{n_blades}")
         if (kind, index) in seen:

@@ -1,15 +1,19 @@
-"""The keys a campaign manifest may hold, table by table; an unknown key is refused with the nearest allowed one.
+"""The keys a campaign manifest may hold, table by table, and the readers of its fields (one-line errors).
 
 A typo'd optional key (``frf_unit``, ``max_ordr``) would otherwise be ignored and its default used in silence,
-so every table of ``campaign.toml`` is checked against its list here (docs/campaign.md).
+so every table of ``campaign.toml`` is checked against its list here (docs/campaign.md); an unknown key is refused
+with the nearest allowed one.
 """
 
 from __future__ import annotations
 
 import difflib
 import math
+import tomllib
+from pathlib import Path
 
-__all__ = ["TOP_KEYS", "CAMPAIGN_KEYS", "MASS_KEYS", "TEST_KEYS", "FILM_KEYS", "unknown_key_message",
+__all__ = ["CampaignError", "check_keys", "need_field", "read_toml", "read_grid",
+           "TOP_KEYS", "CAMPAIGN_KEYS", "MASS_KEYS", "TEST_KEYS", "FILM_KEYS", "unknown_key_message",
            "film_meta_message", "mass_message"]
 
 #: The manifest's top-level tables.
@@ -81,3 +85,39 @@ def mass_message(masses: dict, where: str, n_blades: int) -> str | None:
         return (f"{where}: blade_kg = {blade!r}, expected the mean blade mass in kg (> 0) or one mass per blade "
                 f"({n_blades})")
     return None
+
+
+class CampaignError(ValueError):
+    """A campaign folder or manifest that cannot be used, with a one-line message for the user."""
+
+
+def check_keys(table: dict, allowed: tuple[str, ...], where: str) -> None:
+    """CampaignError naming an unknown key of ``table`` and the nearest allowed one."""
+    if (msg := unknown_key_message(table, allowed, where)) is not None:
+        raise CampaignError(msg)
+
+
+def need_field(table: dict, key: str, where: str, kind: type | tuple[type, ...]):
+    """``table[key]``, of type ``kind`` (a bool is never a number); CampaignError naming ``where`` if not."""
+    if key not in table:
+        raise CampaignError(f"{where}: missing field {key!r}")
+    value = table[key]
+    if not isinstance(value, kind) or isinstance(value, bool):
+        raise CampaignError(f"{where}: field {key!r} = {value!r} has the wrong type")
+    return value
+
+
+def read_toml(path: Path) -> dict:
+    """The TOML document at ``path``; CampaignError in one line (file and parser message) if it is not TOML."""
+    try:
+        return tomllib.loads(path.read_text(encoding="utf-8"))
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
+        raise CampaignError(f"{path}: not valid TOML ({' '.join(str(exc).split())})") from None
+
+
+def read_grid(value, where: str) -> tuple[int, int]:
+    """A ``[rows, cols]`` grid of integers ≥ 2; CampaignError naming ``where`` if not."""
+    if (not isinstance(value, list) or len(value) != 2
+            or not all(isinstance(v, int) and not isinstance(v, bool) and v >= 2 for v in value)):
+        raise CampaignError(f"{where}: grid = {value!r}, expected [rows, cols] with integers ≥ 2")
+    return int(value[0]), int(value[1])

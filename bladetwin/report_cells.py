@@ -9,7 +9,7 @@ import re
 from pathlib import Path
 from typing import Any
 
-__all__ = ["ReportError", "format_number", "as_float", "read_csv_table", "one_line", "DEFAULT_REPORT_NAME",
+__all__ = ["ReportError", "format_number", "as_float", "as_list", "read_csv_table", "one_line", "DEFAULT_REPORT_NAME",
            "SUMMARY_NAME", "UNAVAILABLE", "MISSING"]
 
 DEFAULT_REPORT_NAME = "report.html"
@@ -114,3 +114,8 @@ def read_csv_table(path: str | Path) -> tuple[list[str], list[list[str]]]:
 def one_line(exc: BaseException) -> str:
     """The message of ``exc`` on one line (its type's name when it has none)."""
     return " ".join(str(exc).split()) or type(exc).__name__
+
+
+def as_list(value: Any) -> list:
+    """``value`` as a list where it is a list or tuple in summary.json; an empty list otherwise."""
+    return list(value) if isinstance(value, (list, tuple)) else []

@@ -20,10 +20,12 @@ from .report_cells import (
     UNAVAILABLE,
     ReportError,
     as_float,
+    as_list,
     format_number,
     one_line,
     read_csv_table,
 )
+from .report_header import fact_items, header_items, timing_rows
 from .rom_summary import CONTROL_TEXT
 
 __all__ = ["report_context"]
@@ -47,19 +49,6 @@ _METRIC_ROWS = (
 )
 #: A table row's label (first column) → the line the table's caption gains where the row is there.
 _ROW_TEXT = {"B_baseline": CONTROL_TEXT}
-_KIND_TEXT = {
-    "virtual": "virtual campaign (simulated on the digital twin; the true patterns are known)",
-    "lab": "laboratory campaign (measured; only the filmed joints have a reference)",
-}
-_TIMING_LABELS = {
-    "ema": "experimental modal analysis",
-    "rom": "reduced-order models",
-    "dataset": "dataset (δ grid × patterns)",
-    "identify": "identification (k-NN)",
-    "validation": "validation",
-    "report": "report",
-    "total": "total",
-}
 _MIME = {".png": "image/png", ".jpg": "image/jpeg", ".jpeg": "image/jpeg", ".gif": "image/gif",
          ".svg": "image/svg+xml", ".webp": "image/webp"}
 
@@ -208,10 +197,6 @@ def _paragraphs(text: Any) -> list[str]:
     return [str(t) for t in text if str(t).strip()]
 
 
-def _list(value: Any) -> list:
-    return list(value) if isinstance(value, (list, tuple)) else []
-
-
 def _sections(folder: _Folder, summary: dict) -> list[_Section]:
     raw = summary.get("sections") or []
     if not isinstance(raw, list):
@@ -229,10 +214,10 @@ def _sections(folder: _Folder, summary: dict) -> list[_Section]:
             anchor, k = f"{base}-{k}", k + 1
         seen.add(anchor)
         section = _Section(anchor, title, _paragraphs(s.get("text")))
-        for j, f in enumerate(_list(s.get("figures"))):
+        for j, f in enumerate(as_list(s.get("figures"))):
             n_fig += 1
             section.figures.append(_figure_view(folder, f, f"{where}.figures[{j}]", n_fig))
-        for j, t in enumerate(_list(s.get("tables"))):
+        for j, t in enumerate(as_list(s.get("tables"))):
             n_tab += 1
             section.tables.append(_table_view(folder, t, f"{where}.tables[{j}]", n_tab))
         sections.append(section)
@@ -269,7 +254,7 @@ def _table8(summary: dict) -> dict:
 
 def _joints(summary: dict) -> list[list[_Cell]]:
     rows = []
-    for j in _list(summary.get("joints")):
+    for j in as_list(summary.get("joints")):
         if not isinstance(j, dict):
             continue
         row = [_Cell(format_number(j.get("joint", MISSING)), header=True), _Cell(str(j.get("source") or MISSING))]
@@ -291,61 +276,14 @@ def _joints(summary: dict) -> list[list[_Cell]]:
     return rows
 
 
-def _duration(seconds: float) -> str:
-    if not math.isfinite(seconds):
-        return MISSING
-    s = round(seconds)
-    if s < 60:
-        return f"{seconds:.1f} s"
-    h, rem = divmod(s, 3600)
-    m, s = divmod(rem, 60)
-    return f"{h} h {m:02d} min" if h else f"{m} min {s:02d} s"
-
-
-def _timings(summary: dict) -> list[tuple[str, str, str, bool]]:
-    raw = summary.get("timings_s") if isinstance(summary.get("timings_s"), dict) else {}
-    items = [(k, v) for k, v in raw.items() if k != "total"] + ([("total", raw["total"])] if "total" in raw else [])
-    out = []
-    for key, v in items:
-        x = as_float(v)
-        label = _TIMING_LABELS.get(key, str(key))
-        out.append((label, MISSING if x is None else f"{x:.1f}", MISSING if x is None else _duration(x),
-                    key == "total"))
-    return out
-
-
-def _joined(values: Any, sep: str = ", ") -> str | None:
-    seq = _list(values)
-    return sep.join(format_number(v) for v in seq) if seq else None
-
-
-def _facts(summary: dict) -> list[tuple[str, str]]:
-    facts = []
-    if summary.get("feature_modes"):
-        facts.append(("Feature modes (disk–one-blade)", _joined(summary["feature_modes"])))
-    step1 = summary.get("step1")
-    if isinstance(step1, dict) and "max_abs_eps_pct" in step1:
-        v = step1["max_abs_eps_pct"]
-        text = UNAVAILABLE if v is None else f"{format_number(v)} % (target ≤ 50 %: the nearest δ grid value)"
-        facts.append(("Largest step-1 grid error |ε|", text))
-    bias = summary.get("bias")
-    if isinstance(bias, dict):
-        if not bias.get("enabled", False):
-            facts.append(("Bias correction", "off"))
-        else:
-            joints = _joined(bias.get("joints"))
-            facts.append(("Bias correction", "on" + (f", estimated on filmed joints {joints}" if joints else "")))
-    return facts
-
-
 def _bias_table(summary: dict) -> dict | None:
     bias = summary.get("bias")
     if not isinstance(bias, dict) or not bias.get("enabled", False):
         return None
-    per_mode, spread = _list(bias.get("per_mode_pct")), _list(bias.get("spread_pct"))
+    per_mode, spread = as_list(bias.get("per_mode_pct")), as_list(bias.get("spread_pct"))
     if not per_mode:
         return None
-    modes = _list(summary.get("feature_modes"))
+    modes = as_list(summary.get("feature_modes"))
     labels = [f"mode {format_number(m)}" for m in modes] if len(modes) == len(per_mode) else [
         f"#{k + 1}" for k in range(len(per_mode))]
     rows = [("bias (%)", [_Cell(format_number(v), numeric=v is not None) for v in per_mode])]
@@ -355,47 +293,26 @@ def _bias_table(summary: dict) -> dict | None:
     return {"labels": labels, "rows": rows}
 
 
-def _header(summary: dict) -> list[tuple[str, str]]:
-    items = []
-    kind = summary.get("kind")
-    if kind is not None:
-        items.append(("Kind", _KIND_TEXT.get(str(kind), str(kind))))
-    if summary.get("n_blades") is not None:
-        items.append(("Blades", format_number(summary["n_blades"])))
-    grid = _list(summary.get("grid"))
-    if grid:
-        items.append(("Contact grid per flank", " × ".join(format_number(g) for g in grid)))
-    if "known_joints" in summary:
-        items.append(("Known (filmed) joints", _joined(summary.get("known_joints")) or "none"))
-    if summary.get("campaign_dir"):
-        items.append(("Campaign folder", str(summary["campaign_dir"])))
-    if summary.get("generated"):
-        items.append(("Generated", str(summary["generated"])))
-    if summary.get("bladetwin_version"):
-        items.append(("bladetwin version", str(summary["bladetwin_version"])))
-    return items
-
-
 # -------------------------------------------------------------------------------------------- rendering
 
 
 def report_context(out_dir: Path, path: Path, summary: dict) -> dict:
     """The template's variables for the page ``path`` of the output folder ``out_dir`` and its ``summary.json``."""
     folder = _Folder(out_dir, path)
-    notes = [str(n) for n in _list(summary.get("notes")) if str(n).strip()]
+    notes = [str(n) for n in as_list(summary.get("notes")) if str(n).strip()]
     if isinstance(summary.get("notes"), str):
         notes = [summary["notes"]]
     sections = _sections(folder, summary)
     return {
         "campaign": str(summary.get("campaign") or out_dir.resolve().name),
         "command": summary.get("command"),
-        "header": _header(summary),
-        "facts": _facts(summary),
+        "header": header_items(summary),
+        "facts": fact_items(summary),
         "bias": _bias_table(summary),
         "table8": _table8(summary),
         "notes": notes,
-        "warnings": [str(w) for w in _list(summary.get("warnings")) if str(w).strip()],
-        "timings": _timings(summary),
+        "warnings": [str(w) for w in as_list(summary.get("warnings")) if str(w).strip()],
+        "timings": timing_rows(summary),
         "joints": _joints(summary),
         "sections": sections,
         "lead": _lead(sections),
