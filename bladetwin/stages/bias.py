@@ -18,6 +18,8 @@ __all__ = ["MATCH_WINDOW", "Features", "tracker_for", "match_to_reference", "sub
 #: Window of the frequency matching between measured and tracked modes (relative).
 MATCH_WINDOW = 0.05
 
+#: The last tracker built in this process, with the models and dataset it was built on (held, so that their ids
+#: cannot be reused by other objects while the entry stands).
 _TRACKERS: dict = {}
 
 
@@ -52,10 +54,11 @@ class Features:
 def tracker_for(disk, blade, dataset: Dataset) -> ModeTracker:
     """The dataset's mode tracker, built once per process for the same (loaded) models and dataset."""
     k = (id(disk), id(blade), id(dataset))
-    if k not in _TRACKERS:
+    hit = _TRACKERS.get(k)
+    if hit is None or hit[0] is not disk or hit[1] is not blade or hit[2] is not dataset:
         _TRACKERS.clear()
-        _TRACKERS[k] = ModeTracker.from_dataset(disk, blade, dataset)
-    return _TRACKERS[k]
+        _TRACKERS[k] = hit = (disk, blade, dataset, ModeTracker.from_dataset(disk, blade, dataset))
+    return hit[3]
 
 
 def match_to_reference(frequencies_hz: np.ndarray, reference_hz: np.ndarray, window: float = MATCH_WINDOW

@@ -61,6 +61,7 @@ class RunStats:
 def _init_worker(single: bool) -> None:
     global _SINGLE_THREAD
     _SINGLE_THREAD = single
+    _LOADED.clear()  # a worker reads the entries of its own run only
     # Ctrl-C is the parent's to handle: it stops the workers itself, so they print no traceback of their own.
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     _die_with_parent()
@@ -75,15 +76,18 @@ def _die_with_parent() -> None:
             ctypes.CDLL(None, use_errno=True).prctl(1, signal.SIGKILL)  # 1: PR_SET_PDEATHSIG
 
 
-def _stop(pool: ProcessPoolExecutor) -> None:
+def _stop(pool: ProcessPoolExecutor, others: set[int]) -> None:
     """Stop the workers now (an error or Ctrl-C in this process): no node is left to finish its job.
 
+    ``others`` are the process ids of this process's children from before the pool: they are not its workers.
     The store stays consistent: every entry is written to a temporary file and renamed, so a killed node
     leaves nothing behind, and a rerun computes it again.
     """
-    # concurrent.futures has no public call for this; shutdown() would wait for the running nodes (minutes).
-    for proc in list(getattr(pool, "_processes", {}).values()):
-        proc.terminate()
+    # concurrent.futures has no public call that stops running workers (shutdown() would wait for the running
+    # nodes: minutes); its workers are multiprocessing children, which multiprocessing lists.
+    for proc in multiprocessing.active_children():
+        if proc.pid not in others:
+            proc.terminate()
     pool.shutdown(wait=False, cancel_futures=True)
 
 
@@ -281,12 +285,13 @@ class Runner:
             self.state[name] = _State(key, "done", src.value)
         for n in nodes:
             self.state.setdefault(n.name, _State())
+        others = {proc.pid for proc in multiprocessing.active_children()}
         pool = self._pool()
         try:
             self._loop(nodes, pool)
         except BaseException:
             if pool is not None:
-                _stop(pool)
+                _stop(pool, others)
             raise
         else:
             if pool is not None:
@@ -298,6 +303,7 @@ class Runner:
     def _pool(self) -> ProcessPoolExecutor | None:
         if self.workers < 2 or "fork" not in multiprocessing.get_all_start_methods():
             return None
+        _INHERITED.clear()  # this run's sources only, whatever a run before it left
         _INHERITED.update({self.state[n].key: s.value for n, s in self.sources.items()})
         return ProcessPoolExecutor(self.workers, mp_context=multiprocessing.get_context("fork"),
                                    initializer=_init_worker, initargs=(True,))
