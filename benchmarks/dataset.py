@@ -2,7 +2,7 @@
 
 Builds the paper's dataset (§6.3) on the academic twin: 10 × 10 synthetic pattern pairs (PCA sampler of
 :mod:`identify.sampler` fed with smooth, similar "known" film maps, fixed seed) and a δ grid of 6 values
-for 3 blade modes, made by :func:`identify.dataset.grid_from_deltas` from fixed-seed "measured" deltas in
+for 3 blade modes, made by :func:`identify.delta_grid.grid_from_deltas` from fixed-seed "measured" deltas in
 [−0.5 %, 2 %]: 6 × 6 × 6 × 100 = 21,600 samples. In the same run it times the reference, one direct
 disk–one-blade solve per sample (:func:`rom.solve_d1b`: assembly with δ, then the dense eigen-solve), on
 ``--n-direct`` random samples, and extrapolates it to the whole dataset. Every checked sample's stored
@@ -86,8 +86,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--json", default=None, help="also write the figures to this JSON file")
     args = ap.parse_args(argv)
 
-    from identify.dataset import build_dataset, grid_from_deltas
-    from identify.sampler import sample_patterns
+    from identify.dataset_build import build_dataset
+    from identify.delta_grid import grid_from_deltas
+    from identify.synthetic import sample_patterns
     from rom import ContactPattern, solve_d1b
     from rom.academic import AcademicParams, build_bladed_disk
     from rom.cache import cached_reduce_blade, cached_reduce_disk

@@ -100,9 +100,10 @@ def main(argv: list[str] | None = None) -> int:
 
     from dataset import check_against_direct, known_maps  # benchmarks/dataset.py: same patterns, deltas, check
 
-    from identify.dataset import grid_from_deltas, save_dataset
+    from identify.dataset import save_dataset
     from identify.dataset_parts import build_dataset_parts
-    from identify.sampler import sample_patterns
+    from identify.delta_grid import grid_from_deltas
+    from identify.synthetic import sample_patterns
     from rom.academic import AcademicParams, build_bladed_disk
     from rom.cache import cached_reduce_blade, cached_reduce_disk
 

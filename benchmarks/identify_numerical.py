@@ -50,7 +50,8 @@ def main(argv: list[str] | None = None) -> int:
     from bladetwin.campaign import read_campaign
     from bladetwin.run import run_nodes
     from bladetwin.stages.patterns import family_samplers, film_patterns, mean_known_pattern, read_films, synthesize
-    from identify.dataset import build_dataset, grid_from_deltas
+    from identify.dataset_build import build_dataset
+    from identify.delta_grid import grid_from_deltas
     from identify.interpolated import match_interpolated
     from identify.knn import TwoStepKNN, query_matrix
     from identify.refine import refine_pattern

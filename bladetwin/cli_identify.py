@@ -78,11 +78,11 @@ def save_synthetic(path: Path, sp) -> Path:
 
 
 def load_synthetic(path: str | Path):
-    """Read :func:`save_synthetic`'s file back into a :class:`identify.sampler.SyntheticPatterns`."""
+    """Read :func:`save_synthetic`'s file back into a :class:`identify.synthetic.SyntheticPatterns`."""
     import zipfile
 
     from identify.errors import IdentifyError
-    from identify.sampler import SyntheticPatterns
+    from identify.synthetic import SyntheticPatterns
 
     path = Path(path)
     if not path.is_file():

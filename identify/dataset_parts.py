@@ -1,6 +1,6 @@
 """Resumable dataset builds in Parquet parts, in process or on Dask (issue 12, items 1–2).
 
-A build is split into its pattern pairs (:func:`identify.dataset.plan_dataset`, :func:`solve_pair`). Each
+A build is split into its pattern pairs (:func:`identify.dataset_build.plan_dataset`, :func:`solve_pair`). Each
 finished pair is written atomically as one Parquet part in the build folder, beside ``manifest.json``, which
 holds the hash of every input (the cache key). Re-running the same build after an interruption (even
 SIGKILL) reads the finished parts and computes only the missing pairs; a folder holding parts of another
@@ -28,8 +28,9 @@ import numpy as np
 from rom.cache import hash_inputs
 from rom.fileio import atomic_path
 
-from .dataset import (
-    Dataset,
+from .dataset import Dataset
+from .dataset_build import (
+    DEFAULT_TOL,
     DatasetPlan,
     PairResult,
     assemble_dataset,
@@ -117,7 +118,7 @@ def build_dataset_parts(
     tol: float | None = None, method: str = "auto", workers: int | None = None, scheduler: str | None = None,
     say: Callable[[str], None] = lambda m: None,
 ) -> Dataset:
-    """:func:`identify.dataset.build_dataset`, resumable, one Parquet part per pattern pair in ``folder``.
+    """:func:`identify.dataset_build.build_dataset`, resumable, one Parquet part per pattern pair in ``folder``.
 
     Parameters
     ----------
@@ -129,7 +130,7 @@ def build_dataset_parts(
         Address of an existing Dask scheduler (``tcp://host:8786``); overrides ``workers``.
     say : callable
         Progress messages.
-    Other parameters as :func:`identify.dataset.build_dataset`.
+    Other parameters as :func:`identify.dataset_build.build_dataset`.
 
     Returns
     -------
@@ -142,8 +143,6 @@ def build_dataset_parts(
         Bad inputs (as ``build_dataset``); a folder or part of another build; Dask missing for ``workers`` or
         ``scheduler``.
     """
-    from .dataset import DEFAULT_TOL
-
     plan = plan_dataset(disk, blade, patterns_L, patterns_R, delta_grid, n_delta_modes=n_delta_modes,
                         n_modes=n_modes, sensitivity=sensitivity, reference=reference, n_extra=n_extra,
                         formulation=formulation, tol=DEFAULT_TOL if tol is None else tol, method=method)

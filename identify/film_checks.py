@@ -8,11 +8,11 @@ interpretation (a warning that reaches ``summary.json``).
 
 The checks
 ----------
-* **Gray scale** (with ``white`` given): the image's unexposed level (:func:`identify.film.unexposed_level`)
+* **Gray scale** (with ``white`` given): the image's unexposed level (:func:`identify.film_image.unexposed_level`)
   must agree with ``white`` within :data:`WHITE_RATIO`. An image whose level is ``white`` × 257 or × 256 (a
   16-bit scan of a film whose metadata is in 8-bit levels) is read on the metadata's scale, with a warning. An
   image with no pixel as bright as ``contact_level`` has no unexposed film at all (all black).
-* **Imprint present**: some pixels are exposed (:func:`identify.film.find_imprint`); a blank film is refused.
+* **Imprint present**: some pixels are exposed (:func:`identify.film_image.find_imprint`); a blank film is refused.
 * **Imprint inside the grid's cells** (with geometry given): the imprint cannot extend beyond the flank, so
   its bounding box must lie inside the nodes' cells (node box widened by half a spacing), within
   :func:`imprint_tolerance`. A box that is the cells' box transposed is a scan rotated by 90°; one larger in
@@ -59,7 +59,7 @@ def match_gray_scale(image: np.ndarray, white: float, level: float, threshold: f
     white : float
         The metadata's unexposed gray level.
     level : float
-        The image's own unexposed level (:func:`identify.film.unexposed_level`).
+        The image's own unexposed level (:func:`identify.film_image.unexposed_level`).
     threshold : float or None
         The metadata's ``contact_level``, if any.
 

@@ -32,8 +32,7 @@ from rom.contact_stiffness import ContactStiffness, interface_compliance, with_c
 from rom.modal import dense_modes, single_thread_blas
 
 from .errors import IdentifyError
-from .sensitivity import assign_modes, common_coords, d1b_pencil
-from .tracking import ModeTracker
+from .tracking import ModeTracker, assign_modes, common_coords, d1b_pencil
 
 __all__ = ["ROM_ERROR", "PRIOR_STD", "STOP_SHARE", "DISAGREE_BOUND", "BLADE_SHARE_MIN", "InSituFit", "StiffnessFit",
            "UpdatedROM", "tracked_sensitivity", "calibrated_modes", "fit_corrections", "fit_contact_stiffness",

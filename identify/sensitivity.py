@@ -22,8 +22,8 @@ Output
     Hz scaled to sum 1 (the more contact-sensitive mode weighs more, paper §6.4; the same rule as the
     k-NN's ``weights="sensitivity"``).
 
-The helpers that assemble tuned pencils and pair modes (:func:`d1b_pencil`, :func:`update_index`,
-:func:`ema.mac` (mass-weighted), :func:`assign_modes`, :func:`model_key`) are shared with :mod:`identify.dataset`.
+The pencils, the shared coordinates and the mode assignment are the disk–one-blade tracker's
+(:mod:`identify.tracking`), the same as the dataset's and the tracker's.
 """
 
 from __future__ import annotations
@@ -34,18 +34,15 @@ import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.optimize import linear_sum_assignment
 from tqdm.auto import tqdm
 
 from ema.mac import mac as ema_mac
-from rom.cache import hash_inputs
-from rom.contact import ContactPattern
 from rom.craig_bampton import CraigBamptonModel
 from rom.modal import dense_modes, single_thread_blas
-from rom.rom_assembly import FORMULATIONS, assemble_d1b
 from rom.rubin import RubinModel
 
 from .errors import IdentifyError
+from .tracking import assign_modes, check_formulation, common_coords, model_key, pencil_checked
 
 __all__ = [
     "Sensitivity",
@@ -53,17 +50,11 @@ __all__ = [
     "summarize",
     "reference_pair",
     "check_patterns",
-    "d1b_pencil",
-    "update_index",
-    "assign_modes",
-    "model_key",
     "MAC_WARN",
 ]
 
 #: Tracked modes whose MAC with their reference mode falls below this are reported (warnings.warn).
 MAC_WARN = 0.5
-#: Full bases kept by some reduced models; they do not change the ROM, so they stay out of the model key.
-_KEY_SKIP = {"Phi", "Psi", "excess_dofs", "Phi_r", "Phi_f", "Psi_r", "delta"}
 
 
 @dataclass(frozen=True, eq=False)
@@ -166,69 +157,7 @@ def blade_grid(blade: RubinModel) -> tuple[int, int]:
     return int(g[0]), int(g[1])
 
 
-def check_formulation(formulation: str) -> None:
-    if formulation not in FORMULATIONS:
-        raise IdentifyError(f"formulation={formulation!r}: expected one of {FORMULATIONS}")
-
-
 # ----------------------------------------------------------------------------------------- helpers
-def model_key(disk: CraigBamptonModel, blade: RubinModel, formulation: str = "exact") -> str:
-    """SHA-256 (:func:`rom.cache.hash_inputs`) of every array and setting that defines the d1b ROM.
-
-    Optional full bases and the blade's own δ (the dataset sets δ itself) are left out. A dataset or
-    sensitivity built with another model gets another key.
-    """
-    check_formulation(formulation)
-    parts: list = ["identify-d1b", formulation]
-    for model in (disk, blade):
-        parts.append(type(model).__name__)
-        for f in dataclasses.fields(model):
-            v = getattr(model, f.name)
-            if f.name in _KEY_SKIP or v is None:
-                continue
-            parts += [f.name, v if isinstance(v, (np.ndarray, dict, list, tuple)) else np.asarray(v)]
-    return hash_inputs(*parts)
-
-
-def update_index(disk: CraigBamptonModel, blade: RubinModel, n_delta_modes: int) -> np.ndarray:
-    """d1b coordinates of the blade modal coordinates η_f,1..k, whose stiffness is (1 + δ_i) ω_i² (Eq. 19).
-
-    :func:`rom.rom_assembly.assemble_d1b` puts the disk's coordinates first, then the blade's rigid-body and
-    free-interface modal coordinates.
-    """
-    return disk.n + blade.n_r + np.arange(int(n_delta_modes))
-
-
-def d1b_pencil(disk, blade, L, R, *, formulation: str = "exact", delta=None) -> tuple[np.ndarray, np.ndarray]:
-    """Dense (K, M) of the disk–one-blade ROM for one pattern pair (Eq. 22), blade tuned unless ``delta``.
-
-    Assembled with one BLAS thread: on a loaded 2-core machine threaded BLAS was up to 40× slower here.
-    """
-    with single_thread_blas():
-        asm = assemble_d1b(disk, blade, ContactPattern(L, R), delta=0.0 if delta is None else delta,
-                           formulation=formulation)
-    return asm.K, asm.M
-
-
-def assign_modes(mac: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Assign each row (reference mode) one distinct column (candidate) with maximum total MAC (Hungarian).
-
-    Parameters
-    ----------
-    mac : ndarray, shape (n_ref, n_cand), n_cand ≥ n_ref
-
-    Returns
-    -------
-    cols : ndarray of int, shape (n_ref,)
-    values : ndarray of float64, shape (n_ref,)
-        The MAC of each assignment.
-    """
-    rows, cols = linear_sum_assignment(mac, maximize=True)
-    out = np.empty(mac.shape[0], np.int64)
-    out[rows] = cols
-    return out, mac[np.arange(mac.shape[0]), out]
-
-
 def reference_pair(patterns_L, patterns_R) -> tuple[int, int]:
     """Medoid of each side: the pattern with the least summed Hamming distance to the others (ties: lowest).
 
@@ -288,17 +217,6 @@ def warn_low_mac(mac: np.ndarray, what: str) -> None:
                       f"worst {mac[i]:.3f} at index {tuple(int(x) for x in i)} (pattern pair, mode): tracking "
                       "there is uncertain; consider more candidate modes (n_extra) or a closer reference pair",
                       stacklevel=3)
-
-
-def common_coords(n: int, disk: CraigBamptonModel, blade: RubinModel) -> np.ndarray:
-    """Coordinates every pattern shares: disk + blade modal coordinates, then the accessory DOFs (last).
-
-    Equal to all coordinates in the exact formulation; the paper formulation also keeps detached root
-    DOFs, whose number depends on the pattern.
-    """
-    front = disk.n + blade.n_r + blade.m
-    n_acc = blade.n_b - blade.n_interface
-    return np.concatenate([np.arange(front), np.arange(n - n_acc, n)])
 
 
 # ----------------------------------------------------------------------------------------- public
@@ -364,7 +282,7 @@ def sensitivity(
     order = [ref] + [(i, j) for i in range(len(PL)) for j in range(len(PR)) if (i, j) != ref]  # reference first
     for i, j in tqdm(order, desc="sensitivity", unit="pair", file=sys.stderr, disable=not progress):
         K, M = pencil_checked(disk, blade, PL[i], PR[j], i, j, formulation)
-        with single_thread_blas():  # small dense products: one thread (see d1b_pencil)
+        with single_thread_blas():  # small dense products: one thread (see tracking.d1b_pencil)
             dm = dense_modes(K, M, n_cand, max_rigid=6)
             if dm.frequencies_hz.size < n_cand:
                 raise IdentifyError(f"pair ({i}, {j}): the ROM has only {dm.frequencies_hz.size} elastic modes, "
@@ -403,12 +321,3 @@ def check_reference(reference, PL: np.ndarray, PR: np.ndarray) -> tuple[int, int
     if not (0 <= i < len(PL) and 0 <= j < len(PR)):
         raise IdentifyError(f"reference={reference!r}: expected i_L in 0..{len(PL) - 1}, i_R in 0..{len(PR) - 1}")
     return i, j
-
-
-def pencil_checked(disk, blade, L, R, i: int, j: int, formulation: str, delta=None):
-    try:
-        return d1b_pencil(disk, blade, L, R, formulation=formulation, delta=delta)
-    except IdentifyError:
-        raise
-    except ValueError as exc:  # an invalid ContactPattern (no contact, collinear) or a model mismatch
-        raise IdentifyError(f"pattern pair (L {i}, R {j}) (0-based): {exc}") from None

@@ -26,9 +26,10 @@ __all__ = ["PACKAGES", "FORMAT", "CodecError", "encode", "save", "load", "load_w
 #: The packages whose dataclasses a store entry may name.
 PACKAGES = ("ema", "rom", "identify", "bladetwin")
 #: Version of the stored types' fields, part of every node's key: raise it when a stored dataclass renames
-#: or drops a field, so old entries are never decoded into the new types (2: ``frequencies_hz`` in ema; 3: each
-#: entry holds the warnings its computation raised, so a stored stage still reports them).
-FORMAT = 3
+#: or drops a field, or moves to another module, so old entries are never decoded into the new types
+#: (2: ``frequencies_hz`` in ema; 3: each entry holds the warnings its computation raised, so a stored stage still
+#: reports them; 4: ``SyntheticPatterns`` and other stored types moved with the packages' split modules).
+FORMAT = 4
 
 
 class CodecError(ValueError):

@@ -7,9 +7,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from identify.dataset import Dataset, grid_from_deltas
-from identify.sampler import SyntheticPatterns
+from identify.dataset import Dataset
+from identify.delta_grid import grid_from_deltas
 from identify.sensitivity import Sensitivity, sensitivity
+from identify.synthetic import SyntheticPatterns
 from rom.cache import hash_inputs
 
 __all__ = ["DaskSettings", "sensitivity_node", "dataset_node"]
@@ -39,7 +40,7 @@ def dataset_node(disk, blade, synthetic: SyntheticPatterns, delta_all: np.ndarra
     where it stopped; the parts are removed once the dataset is complete.
     """
     from identify.dataset_parts import build_dataset_parts
-    from identify.sensitivity import model_key
+    from identify.tracking import model_key
 
     grid = grid_from_deltas(delta_all[:, :n_delta_modes], step=step_pct / 100, n_delta_modes=n_delta_modes)
     key = hash_inputs("dataset-parts", model_key(disk, blade), synthetic.L, synthetic.R, grid, n_features,

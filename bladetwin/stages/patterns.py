@@ -5,7 +5,8 @@ from __future__ import annotations
 import numpy as np
 
 from identify.film import FilmGeometry, FilmMap, contact_pattern, read_film
-from identify.sampler import PatternSampler, SyntheticPatterns, sample_patterns
+from identify.sampler import PatternSampler
+from identify.synthetic import SyntheticPatterns, sample_patterns
 from rom.contact import ContactPattern
 
 __all__ = ["read_films", "film_patterns", "synthetic_patterns", "family_samplers", "mean_known_pattern"]

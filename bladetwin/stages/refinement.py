@@ -6,7 +6,7 @@ import numpy as np
 
 from identify.dataset import Dataset
 from identify.refine import RefinedPattern, refine_pattern
-from identify.sampler import SyntheticPatterns
+from identify.synthetic import SyntheticPatterns
 from rom.cache import hash_inputs
 from rom.contact import ContactPattern
 
@@ -30,7 +30,7 @@ def refine_joint(disk, blade, dataset: Dataset, films, synthetic: SyntheticPatte
     tracker = tracker_for(disk, blade, dataset)
     iL, iR = labels[joint][:2]
     row = _row(predictions, input, joint)
-    from identify.sensitivity import model_key
+    from identify.tracking import model_key
 
     # The solves depend on the d1b ROM and the tracker's reference modes only (not on the family).
     memo = store.memo("refine-solves-" + hash_inputs(

@@ -18,10 +18,13 @@ import pytest
 import scipy.linalg as sla
 from scipy.optimize import linear_sum_assignment
 
-from identify.dataset import Dataset, build_dataset, grid_from_deltas, load_dataset, save_dataset
+from identify.dataset import Dataset, load_dataset, save_dataset
+from identify.dataset_build import build_dataset
+from identify.delta_grid import grid_from_deltas
 from identify.errors import IdentifyError
 from identify.reanalysis import ritz_model, solve_ritz
-from identify.sensitivity import model_key, sensitivity
+from identify.sensitivity import sensitivity
+from identify.tracking import model_key
 from rom import ContactPattern, assemble_d1b
 from rom.modal import single_thread_blas
 
@@ -70,7 +73,7 @@ def _assign(mac):
 def test_every_stored_frequency_matches_a_direct_solve(built):
     """≥ 200 samples against direct solves, tracked here by the documented rule.
 
-    Rule (identify.dataset): a sample's modes follow their pair's δ = 0 modes (MAC with the pair's mass), and
+    Rule (identify.dataset_build): a sample's modes follow their pair's δ = 0 modes (MAC with the pair's mass), and
     those the reference pair's modes (MAC with the reference mass). Where the direct MAC against the
     reference is unambiguous (every assigned MAC ≥ 0.8) that is the same as tracking straight to the
     reference; near a veering (pair (L 0, R 1), modes 9–10 here) only the chained rule is defined.

@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from identify.dataset import build_dataset
+from identify.dataset_build import build_dataset
 from identify.dataset_parts import MANIFEST, build_dataset_parts
 from identify.errors import IdentifyError
 

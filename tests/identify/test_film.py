@@ -10,15 +10,8 @@ from PIL import Image
 from scipy.ndimage import gaussian_filter
 
 from identify import IdentifyError
-from identify.film import (
-    FilmGeometry,
-    contact_pattern,
-    find_imprint,
-    load_image,
-    map_film,
-    otsu_threshold,
-    read_film,
-)
+from identify.film import FilmGeometry, contact_pattern, map_film, read_film
+from identify.film_image import find_imprint, load_image, otsu_threshold
 from lab.films import render_film, write_film
 from lab.patterns import simulate_pressure
 from rom.academic import AcademicParams, build_bladed_disk, flank_coordinates

@@ -11,9 +11,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from identify.dataset import build_dataset
+from identify.dataset_build import build_dataset
 from identify.knn import TwoStepKNN, query_matrix
-from identify.sampler import sample_patterns
+from identify.synthetic import sample_patterns
 from identify.tracking import ModeTracker
 from identify.validation import contact_area_fraction, grid_error
 from rom.contact import ContactPattern

@@ -24,7 +24,7 @@ from identify.plots import (
     plot_sensitivity,
     plot_synthetic_patterns,
 )
-from identify.sampler import sample_patterns
+from identify.synthetic import sample_patterns
 from identify.validation import compare_modes, d1b_validation, geometric_validation, grid_error
 
 matplotlib.use("Agg")

@@ -11,10 +11,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from identify.dataset import build_dataset
+from identify.dataset_build import build_dataset
 from identify.errors import IdentifyError
 from identify.refine import refine_pattern
-from identify.sampler import PatternSampler, sample_patterns
+from identify.sampler import PatternSampler
+from identify.synthetic import sample_patterns
 from identify.tracking import ModeTracker
 from rom.contact import ContactPattern
 

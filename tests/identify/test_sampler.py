@@ -9,7 +9,8 @@ from sklearn.exceptions import NotFittedError
 
 from identify import IdentifyError
 from identify.film import FilmGeometry, map_film
-from identify.sampler import PatternSampler, SyntheticPatterns, draw_coefficients, sample_patterns
+from identify.sampler import PatternSampler, draw_coefficients
+from identify.synthetic import SyntheticPatterns, sample_patterns
 from lab.films import render_film
 from lab.patterns import simulate_pressure
 from rom.academic import flank_coordinates

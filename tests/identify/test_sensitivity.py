@@ -19,7 +19,8 @@ from scipy.optimize import linear_sum_assignment
 
 from ema.mac import mac as ema_mac
 from identify.errors import IdentifyError
-from identify.sensitivity import model_key, reference_pair, sensitivity, summarize
+from identify.sensitivity import reference_pair, sensitivity, summarize
+from identify.tracking import model_key
 from rom import ContactPattern, assemble_d1b, solve_d1b
 from rom.modal import single_thread_blas
 
