@@ -24,7 +24,7 @@ import _paths  # noqa: F401  (must precede the package imports: this script is n
 import numpy as np
 from sdypy import EMA
 
-from ema import FRFSet, fit
+from ema import FitSettings, FRFSet, fit
 from ema.lscf import lscf
 from ema.lsrf import lsrf
 from ema.selection import select_auto
@@ -84,7 +84,7 @@ def main() -> int:
     diagram_rf = stabilize(ps_lsrf)
     t_sel_rf, sel_rf = best_of(lambda: select_auto(diagram_rf), repeat=3)
 
-    fits = {m: best_of(lambda m=m: fit(frf, method=m), repeat=1) for m in ("lscf", "lsrf")}
+    fits = {m: best_of(lambda m=m: fit(frf, settings=FitSettings(method=m)), repeat=1) for m in ("lscf", "lsrf")}
 
     def hits(found: np.ndarray) -> int:
         return int(sum(np.min(np.abs(found - f) / f) < 5e-4 for f in fn)) if found.size else 0

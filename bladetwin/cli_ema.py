@@ -62,31 +62,22 @@ def _method(args: argparse.Namespace) -> str:
 
 
 def _fit(frf, args: argparse.Namespace, freqs=None):
-    from ema import fit, fit_auto_order
+    from ema import FitSettings, fit, fit_auto_order
 
     if args.bands < 1:
         raise ValueError(f"--bands must be ≥ 1, got {args.bands}")
+    band = tuple(args.band) if args.band else None
+    settings = FitSettings(method=_method(args), criteria=_criteria(args), n_bands=args.bands,
+                           refine=not args.no_refine)
     order = args.order
     if order == "auto":
-        result, order = fit_auto_order(frf, method=_method(args), band=tuple(args.band) if args.band else None,
-                                       frequencies_hz=freqs, criteria=_criteria(args), n_bands=args.bands,
-                                       refine=not args.no_refine)
+        result, order = fit_auto_order(frf, band, settings, frequencies_hz=freqs)
         print(f"model order chosen from the data: {order}", file=sys.stderr)
         if not getattr(args, "families", False):
             return result
         # the families grow from the fit at the chosen order
-    return fit(
-        frf,
-        method=_method(args),
-        band=tuple(args.band) if args.band else None,
-        max_order=order,
-        frequencies_hz=freqs,
-        criteria=_criteria(args),
-        n_bands=args.bands,
-        refine=not args.no_refine,
-        progress=sys.stderr.isatty(),
-        families=getattr(args, "families", False),
-    )
+    return fit(frf, band, settings, max_order=order, frequencies_hz=freqs, progress=sys.stderr.isatty(),
+               families=getattr(args, "families", False))
 
 
 def _print_modes(result, out=None) -> None:

@@ -13,6 +13,7 @@ from .mac import ModePairing, mac, pair_by_frequency, pair_modes
 from .modal import ModalModel
 from .order import fit_auto_order
 from .picks import Picks, fit_with_picks, load_picks, save_picks
+from .settings import FitSettings
 from .stabilization import StabilityCriteria
 from .uff import read_coherence, read_frfs, read_modes, read_nodes, read_uff, read_units, write_frfs, write_modes
 
@@ -22,6 +23,7 @@ __all__ = [
     "EMAError",
     "EMAResult",
     "FRFSet",
+    "FitSettings",
     "ModalModel",
     "ModePairing",
     "Nodes",

@@ -31,24 +31,23 @@ This module fits that model window by window:
 The result replaces the window's modes; their shapes come from ``ψ_r l_rᵀ`` and their standard deviations
 from the larger of two sandwich covariances of the structured fit: White's (the lines as clusters, as
 :func:`ema.uncertainty.pole_std`) and one whose meat comes from residuals drawn from the window's noise model
-(:func:`_result`). :func:`unexplained_lines` finds where a model leaves modes out (``ema.fit.fill_unexplained``).
+(:func:`_result`). :func:`ema.families.resolve_families` runs it on every window of several modes;
+:func:`ema.unexplained.unexplained_lines` finds where a model leaves modes out, with :func:`noise_model`.
 """
 
 from __future__ import annotations
 
-import logging
 from dataclasses import dataclass
 
 import numpy as np
 
 from .frf import FRF_FORMS, FRFSet
 from .gram import gauss_newton
-from .lsfd import _half_widths, lsfd, synthesize
-from .modal import ModalModel, modal_from_pole, pole_from_modal
+from .lsfd import half_widths, lsfd
+from .modal import modal_from_pole, pole_from_modal
 
-__all__ = ["FamilyFit", "family_windows", "fit_family", "resolve_families", "unexplained_lines", "FALSE_ALARM"]
-
-log = logging.getLogger(__name__)
+__all__ = ["FamilyFit", "FamilyWindow", "family_windows", "fit_family", "noise_model", "normalised_participations",
+           "step_parameters", "ZETA_BOUNDS", "STRONG"]
 
 #: Damping ratio bounds of the refinement (a pole driven to the lower bound is fitting a noise spike).
 ZETA_BOUNDS = (1e-5, 0.05)
@@ -56,8 +55,6 @@ ZETA_BOUNDS = (1e-5, 0.05)
 MAX_ITER, TOL = 150, 1e-9
 #: Residual draws of the noise-model part of the standard deviations (:func:`_noise_draws`).
 N_DRAWS = 32
-#: Chance that noise alone puts one line of a whole test above :func:`unexplained_lines`' threshold.
-FALSE_ALARM = 0.01
 #: A model value counts as strong, for the multiplicative noise share, where its power is this many times the
 #: FRF's additive floor (the floor then adds at most 1 % to the ratio).
 STRONG = 100.0
@@ -93,7 +90,7 @@ class FamilyFit:
         return int(self.poles.size)
 
 
-class _Window:
+class FamilyWindow:
     """The FRFs of one window as a real least-squares problem: rows (re/im, reference, line), columns outputs."""
 
     def __init__(self, frf: FRFSet, window: tuple[float, float]):
@@ -209,7 +206,9 @@ class _Window:
         return JJ, np.stack([per_line(r) for r in (res, *draws)])
 
 
-def _step(f, logz, part, pivot, delta):
+def step_parameters(f, logz, part, pivot, delta):
+    """The window's parameters moved by a step ``delta`` in :meth:`FamilyWindow.gauss_newton`'s order (f Hz, log ζ,
+    Re/Im of each non-pivot participation, mode by mode), log ζ clipped to :data:`ZETA_BOUNDS`."""
     f, logz, part = f.copy(), logz.copy(), part.copy()
     k = 0
     for r in range(f.size):
@@ -227,15 +226,16 @@ def _participations(frf: FRFSet, window: tuple[float, float], lam: np.ndarray) -
     """Each mode's participation from the free-residue LSFD at the poles: the rank-one part of its residues."""
     A = lsfd(frf, lam, window)[0]                              # (n, n_out, n_in)
     part = np.array([np.linalg.svd(A[r])[2][0] for r in range(lam.size)]).T.reshape(A.shape[2], lam.size)
-    return _normalised(part)
+    return normalised_participations(part)
 
 
-def _normalised(part: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def normalised_participations(part: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Participations (n_in, n_modes) scaled to 1 at each mode's largest reference, and those references (pivots)."""
     pivot = np.argmax(np.abs(part), axis=0)
     return part / part[pivot, np.arange(part.shape[1])], pivot
 
 
-def _refine(win: _Window, f, zeta, part, pivot):
+def _refine(win: FamilyWindow, f, zeta, part, pivot):
     """Levenberg–Marquardt on the variable-projection cost; returns (f, ζ, part)."""
     f, logz = np.asarray(f, float).copy(), np.log(np.clip(zeta, *ZETA_BOUNDS))
     lo, hi = win.freq[0], win.freq[-1]
@@ -245,7 +245,7 @@ def _refine(win: _Window, f, zeta, part, pivot):
         scale = np.where(np.diag(JJ) > 0, np.diag(JJ), 1.0)
         while True:
             delta = -np.linalg.solve(JJ + mu * np.diag(scale), grad)
-            f2, logz2, part2 = _step(f, logz, part, pivot, delta)
+            f2, logz2, part2 = step_parameters(f, logz, part, pivot, delta)
             f2 = np.clip(f2, lo, hi)
             solved = win.solve(pole_from_modal(f2, np.exp(logz2)), part2)
             cost2 = solved[0]
@@ -263,14 +263,14 @@ def _refine(win: _Window, f, zeta, part, pivot):
     return f, np.exp(logz), part
 
 
-def _band_energy(win: _Window, res: np.ndarray, f: float, zeta: float) -> float:
+def _band_energy(win: FamilyWindow, res: np.ndarray, f: float, zeta: float) -> float:
     """Residual energy in a mode's half-power band (at least ± one line)."""
     half = max(zeta * f, np.median(np.diff(win.freq)) if win.n_lines > 1 else 0.0)
     lines = np.abs(win.freq - f) <= half
     return float(np.sum(res.reshape(2, win.n_in, win.n_lines, win.n_out)[:, :, lines] ** 2))
 
 
-def _explains(win: _Window, f, zeta, part, r: int) -> bool:
+def _explains(win: FamilyWindow, f, zeta, part, r: int) -> bool:
     """Does mode r explain at least the noise of its own half-power band?
 
     The cost rises by Δ when the mode is removed (the others' shapes re-solved); that Δ is compared with the
@@ -311,7 +311,7 @@ def fit_family(frf: FRFSet, poles: np.ndarray, window: tuple[float, float], core
     zeta0 : float, optional
         Damping ratio a new mode starts from (default: the median of the window's modes, else 0.002).
     """
-    win = _Window(frf, window)
+    win = FamilyWindow(frf, window)
     f, zeta = modal_from_pole(np.asarray(poles, np.complex128).reshape(-1))
     n_start = f.size
     # per output, 2 n_in n_lines equations against 2 unknowns per mode and 2 n_in residual terms
@@ -331,7 +331,7 @@ def fit_family(frf: FRFSet, poles: np.ndarray, window: tuple[float, float], core
             break
         z0 = zeta0 if zeta0 is not None else float(np.median(zeta)) if zeta.size else 0.002
         at = rc[0][:, k] + 1j * rc[1][:, k]                  # (n_in, n_out) residual at the line
-        new, new_pivot = _normalised(np.linalg.svd(at.T)[2][0].reshape(-1, 1))
+        new, new_pivot = normalised_participations(np.linalg.svd(at.T)[2][0].reshape(-1, 1))
         trial = _refine(win, np.r_[f, win.freq[k]], np.r_[zeta, z0], np.c_[part, new], np.r_[pivot, new_pivot])
         if not _explains(win, trial[0], trial[1], trial[2], f.size):
             break
@@ -350,7 +350,7 @@ def fit_family(frf: FRFSet, poles: np.ndarray, window: tuple[float, float], core
     return _result(win, window, f, zeta, part, pivot, n_start)
 
 
-def _restart_participations(frf: FRFSet, win: _Window, window: tuple[float, float], f: np.ndarray,
+def _restart_participations(frf: FRFSet, win: FamilyWindow, window: tuple[float, float], f: np.ndarray,
                             zeta: np.ndarray, part: np.ndarray, pivot: np.ndarray
                             ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Each mode's participation replaced by the free residues' rank-one part where that lowers the cost,
@@ -409,7 +409,7 @@ def _result(win, window, f, zeta, part, pivot, n_start) -> FamilyFit:
                      frequency_std_hz=f_std[order], damping_std=z_std[order], n_start=n_start)
 
 
-def _noise_model(P: np.ndarray, M: np.ndarray, axis: int) -> tuple[np.ndarray, float]:
+def noise_model(P: np.ndarray, M: np.ndarray, axis: int) -> tuple[np.ndarray, float]:
     """The two-part FRF noise model from residual powers ``P`` and model powers ``M`` (same shape).
 
     Returns the additive floor per FRF, ``median |R|² / ln 2`` along the lines' ``axis`` (kept, so it broadcasts;
@@ -422,18 +422,18 @@ def _noise_model(P: np.ndarray, M: np.ndarray, axis: int) -> tuple[np.ndarray, f
     return floor, share
 
 
-def _noise_draws(win: _Window, res: np.ndarray) -> np.ndarray:
+def _noise_draws(win: FamilyWindow, res: np.ndarray) -> np.ndarray:
     """Residuals drawn from the window's noise model, shape (N_DRAWS, rows, n_out), from a fixed seed.
 
-    The model of :func:`unexplained_lines`, fitted to the window's own residual ``res`` (rows, n_out; from
-    :meth:`_Window.solve`): an additive floor per FRF (the median residual power) and a share of the fitted
-    response (from the strong values).
+    The model of :func:`ema.unexplained.unexplained_lines`, fitted to the window's own residual ``res`` (rows,
+    n_out; from :meth:`FamilyWindow.solve`): an additive floor per FRF (the median residual power) and a share of
+    the fitted response (from the strong values).
     """
     shape = (2, win.n_in, win.n_lines, win.n_out)
     r, fitted = res.reshape(shape), (win.Y - res).reshape(shape)
     P = r[0] ** 2 + r[1] ** 2
     M = fitted[0] ** 2 + fitted[1] ** 2
-    floor, share = _noise_model(P, M, axis=1)
+    floor, share = noise_model(P, M, axis=1)
     sd = np.sqrt((floor + share * M) / 2)[None]                       # each of the real and imaginary parts
     rng = np.random.default_rng(0)
     return (sd * rng.standard_normal((N_DRAWS, *shape))).reshape(N_DRAWS, -1, win.n_out)
@@ -448,7 +448,7 @@ def family_windows(poles: np.ndarray, frf: FRFSet, band: tuple[float, float]) ->
     list of (window, core), each (f_lo, f_hi) in Hz
         ``core``: the span of the window's modes widened by half the margin, where growth may add modes.
     """
-    f, half, _ = _half_widths(poles, frf, band)
+    f, half, _ = half_widths(poles, frf, band)
     if f.size == 0:
         return []
     spans = sorted(zip(f - half, f + half, f, half, strict=True))
@@ -466,76 +466,3 @@ def family_windows(poles: np.ndarray, frf: FRFSet, band: tuple[float, float]) ->
         out.append((window, core))
     return out
 
-
-def resolve_families(frf: FRFSet, poles: np.ndarray, band: tuple[float, float], min_modes: int = 2,
-                     progress: bool = False) -> list[FamilyFit]:
-    """Structured fits of every window holding at least ``min_modes`` of ``poles`` (see the module docstring).
-
-    Parameters
-    ----------
-    frf : FRFSet
-    poles : ndarray of complex, shape (n,)
-        The modes an ordinary fit found (rad/s).
-    band : (f_lo, f_hi)
-        Hz; windows are clipped to it.
-    min_modes : int
-        Windows with fewer modes are left to the ordinary fit (a lone mode is no family).
-    progress : bool
-        A progress bar over the windows (tqdm).
-    """
-    poles = np.asarray(poles, np.complex128).reshape(-1)
-    f = modal_from_pole(poles)[0]
-    jobs = [(w, c) for w, c in family_windows(poles, frf, band)
-            if np.count_nonzero((f >= w[0]) & (f <= w[1])) >= min_modes]
-    if progress:
-        from tqdm import tqdm
-        jobs = tqdm(jobs, desc="mode families", unit="window")
-    fits = []
-    for window, core in jobs:
-        inside = (f >= window[0]) & (f <= window[1])
-        fit = fit_family(frf, poles[inside], window, core)
-        log.info("family %.6g-%.6g Hz: %d modes -> %d", *window, fit.n_start, fit.n_modes)
-        fits.append(fit)
-    return fits
-
-
-def unexplained_lines(frf: FRFSet, model: ModalModel, band: tuple[float, float]
-                      ) -> tuple[np.ndarray, np.ndarray, float, np.ndarray]:
-    """Where the data hold more than a modal model and noise explain: the lines of modes the fit missed.
-
-    The residual ``R = H − Ĥ`` of every FRF is scaled by a noise model with the two kinds of FRF noise: an
-    additive floor per FRF, ``σ²_oi = median_f |R_oi|² / ln 2`` (the median of a complex Gaussian's power),
-    and a share of the response, ``s² = median |R|² / |Ĥ|² / ln 2`` over the strong values (|Ĥ|² ≥
-    :data:`STRONG` σ²_oi). Under that model ``z = |R|² / (σ²_oi + s² |Ĥ_oi|²)`` is exponential with mean 1 in
-    every FRF, so the largest of ``n_frf × n_lines`` values stays below ``ln(n_frf n_lines / FALSE_ALARM)``
-    with probability ``1 − FALSE_ALARM``. Why the largest over the FRFs, not their sum: a mode seen by a few
-    response points only (a disk mode at blade tips) stands far above the floor in those FRFs and vanishes
-    in a sum over all of them (on the bundled full-assembly test the sum missed four disk modes that the
-    largest shows at 10⁴ times the floor).
-
-    Parameters
-    ----------
-    frf : FRFSet
-    model : ModalModel
-        With residues (:func:`ema.lsfd.modal_model`).
-    band : (f_lo, f_hi)
-        Hz.
-
-    Returns
-    -------
-    freq_hz : ndarray, shape (n_lines,)
-    z : ndarray, shape (n_lines,)
-        The largest scaled residual power over the FRFs at each line.
-    threshold : float
-    floor : ndarray, shape (n_outputs, n_inputs)
-        The additive noise floor ``σ_oi`` (FRF units).
-    """
-    sel = frf.valid_lines() & (frf.freq_hz >= band[0]) & (frf.freq_hz <= band[1]) & (frf.freq_hz > 0)
-    freq = frf.freq_hz[sel]
-    fitted = synthesize(model, freq, form=frf.form).H
-    P = np.abs(frf.H[:, :, sel] - fitted) ** 2
-    M = np.abs(fitted) ** 2
-    floor, share = _noise_model(P, M, axis=2)
-    z = np.max((P / (floor + share * M)).reshape(-1, freq.size), axis=0)
-    threshold = float(np.log(P.shape[0] * P.shape[1] * max(freq.size, 1) / FALSE_ALARM))
-    return freq, z, threshold, np.sqrt(floor[:, :, 0])

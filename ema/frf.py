@@ -8,14 +8,13 @@ accelerance) and unit labels. Transforms return new objects; nothing is modified
 from __future__ import annotations
 
 import logging
-import math
-import re
 from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 
 import numpy as np
 
 from .errors import EMAError
+from .units import UNIT_FACTORS, clean_label, parse_units, unit_factor
 
 __all__ = [
     "FRF_FORMS",
@@ -307,158 +306,6 @@ def line_ranges(freq_hz: np.ndarray, mask: np.ndarray, max_runs: int = 3) -> str
     return f"{idx.size} line{'s' if idx.size > 1 else ''}, " + ", ".join(runs) + more
 
 
-# ------------------------------------------------------------------------------------------------ units
-# Dimensions of a unit as powers of (length, time, force). FRF labels are ratios of these; mass would only
-# enter through force, which every FRF label states directly.
-_Dims = tuple[int, int, int]
-
-#: Units recognised in FRF unit labels: factor to SI (m, s, N) and dimension (length, time, force).
-#: "g" is the standard acceleration 9.80665 m/s^2; "lb" in an FRF label is pound-force. Names are matched
-#: case-insensitively (UFF labels are often upper case), so only names that stay unambiguous are listed
-#: (no "nm": nanometre or newton-metre).
-UNIT_FACTORS: dict[str, tuple[float, _Dims]] = {
-    "m": (1.0, (1, 0, 0)),
-    "cm": (1e-2, (1, 0, 0)),
-    "mm": (1e-3, (1, 0, 0)),
-    "um": (1e-6, (1, 0, 0)),
-    "\u00b5m": (1e-6, (1, 0, 0)),  # micro sign
-    "\u03bcm": (1e-6, (1, 0, 0)),  # Greek mu
-    "in": (0.0254, (1, 0, 0)),
-    "ft": (0.3048, (1, 0, 0)),
-    "s": (1.0, (0, 1, 0)),
-    "sec": (1.0, (0, 1, 0)),
-    "g": (9.80665, (1, -2, 0)),
-    "n": (1.0, (0, 0, 1)),
-    "kn": (1e3, (0, 0, 1)),
-    "lbf": (4.4482216152605, (0, 0, 1)),
-    "lb": (4.4482216152605, (0, 0, 1)),
-    "rad": (1.0, (0, 0, 0)),
-}
-
-_TOKEN = re.compile(r"\s*(?:(\*\*|[*/^()-])|([0-9]+(?:\.[0-9]*)?(?:[eE][-+]?[0-9]+)?)|([A-Za-z\u00b5\u03bc]+)([0-9]*))")
-_SUPERSCRIPT = str.maketrans({"\u00b2": "^2", "\u00b3": "^3", "\u00b7": "*", "\u22c5": "*"})
-
-
-def parse_units(label: str) -> tuple[float, _Dims] | None:
-    """Factor to SI and dimension of an FRF unit label such as ``"mm/N"``, ``"(1/N)*(m/s²)"`` or ``"g/lbf"``.
-
-    Parameters
-    ----------
-    label : str
-        Products and quotients of the units in :data:`UNIT_FACTORS`, with parentheses, numbers and
-        integer exponents (``s^2``, ``s**2``, ``s2``, ``s²``, ``s^-2``); juxtaposition multiplies.
-
-    Returns
-    -------
-    (factor, dims) or None
-        ``value_SI = value * factor``; dims are the powers of (length, time, force). None when the label is
-        empty or not understood.
-    """
-    text = str(label).translate(_SUPERSCRIPT).strip()
-    if not text or text.upper() == "NONE":
-        return None
-    tokens: list[tuple[str, str]] = []
-    pos = 0
-    while pos < len(text):
-        m = _TOKEN.match(text, pos)
-        if m is None or m.end() == pos:
-            if text[pos:].strip() == "":
-                break
-            return None
-        op, num, name, exp = m.groups()
-        if op is not None:
-            tokens.append(("op", "^" if op == "**" else op))
-        elif num is not None:
-            tokens.append(("num", num))
-        else:
-            tokens.append(("unit", name))
-            if exp:
-                tokens += [("op", "^"), ("num", exp)]
-        pos = m.end()
-    try:
-        value, rest = _parse_product(tokens)
-    except (ValueError, OverflowError, IndexError):
-        return None
-    if rest or not (math.isfinite(value[0]) and value[0] > 0):
-        return None
-    return value
-
-
-def _combine(a: tuple[float, _Dims], b: tuple[float, _Dims], power: int) -> tuple[float, _Dims]:
-    dims = (a[1][0] + power * b[1][0], a[1][1] + power * b[1][1], a[1][2] + power * b[1][2])
-    return a[0] * b[0] ** power, dims
-
-
-def _parse_product(tokens: list[tuple[str, str]]) -> tuple[tuple[float, _Dims], list[tuple[str, str]]]:
-    """product := power (("*" | "/" | juxtaposition) power)*, left to right (a/b/c = a/(b c))."""
-    value, tokens = _parse_power(tokens)
-    while tokens and tokens[0] != ("op", ")"):
-        sign = 1
-        if tokens[0] in (("op", "*"), ("op", "/")):
-            sign = -1 if tokens[0][1] == "/" else 1
-            tokens = tokens[1:]
-        factor, tokens = _parse_power(tokens)
-        value = _combine(value, factor, sign)
-    return value, tokens
-
-
-def _parse_power(tokens: list[tuple[str, str]]) -> tuple[tuple[float, _Dims], list[tuple[str, str]]]:
-    """power := atom ("^" ["-"] integer)?; atom := number | unit | "(" product ")"."""
-    kind, text = tokens[0]
-    if (kind, text) == ("op", "("):
-        value, tokens = _parse_product(tokens[1:])
-        if not tokens or tokens[0] != ("op", ")"):
-            raise ValueError("unbalanced parentheses")
-        tokens = tokens[1:]
-    elif kind == "num":
-        value, tokens = (float(text), (0, 0, 0)), tokens[1:]
-    elif kind == "unit":
-        if text.lower() not in UNIT_FACTORS:
-            raise ValueError(f"unknown unit {text!r}")
-        value, tokens = UNIT_FACTORS[text.lower()], tokens[1:]
-    else:
-        raise ValueError(f"unexpected {text!r}")
-    if tokens and tokens[0] == ("op", "^"):
-        tokens = tokens[1:]
-        sign = 1
-        if tokens[0] == ("op", "-"):
-            sign, tokens = -1, tokens[1:]
-        kind, text = tokens[0]
-        if kind != "num" or not text.isdigit():
-            raise ValueError("exponent is not an integer")
-        value = _combine((1.0, (0, 0, 0)), value, sign * int(text))
-        tokens = tokens[1:]
-    return value, tokens
-
-
-def _clean_label(label: str) -> str:
-    text = " ".join(str(label).split())
-    return "" if text.upper() == "NONE" else text
-
-
-def unit_factor(src: str, dst: str) -> float | None:
-    """Factor that converts FRF values labelled ``src`` into values labelled ``dst``.
-
-    Parameters
-    ----------
-    src, dst : str
-        Unit labels (see :func:`parse_units`).
-
-    Returns
-    -------
-    float or None
-        1.0 for identical labels (also when both are empty or not understood); ``f_src / f_dst`` when both are
-        understood and of the same dimension (``"mm/N"`` into ``"m/N"``: 1e-3); None otherwise.
-    """
-    a, b = _clean_label(src), _clean_label(dst)
-    if a == b:
-        return 1.0
-    pa, pb = parse_units(a), parse_units(b)
-    if pa is None or pb is None or pa[1] != pb[1]:
-        return None
-    return pa[0] / pb[0]
-
-
 def _same_axis(a: np.ndarray, b: np.ndarray, rtol: float = 1e-9) -> bool:
     if a.shape != b.shape:
         return False
@@ -468,7 +315,7 @@ def _same_axis(a: np.ndarray, b: np.ndarray, rtol: float = 1e-9) -> bool:
 
 def _unit_mismatch(s: FRFSet, first: FRFSet) -> str | None:
     """Why the units of ``s`` cannot be converted into those of ``first`` (None when they can)."""
-    a, b = _clean_label(s.units), _clean_label(first.units)
+    a, b = clean_label(s.units), clean_label(first.units)
     if not a and not b:
         us, uf = s.unit_system, first.unit_system
         if us is not None and uf is not None and (us.length, us.force) != (uf.length, uf.force):
@@ -515,6 +362,30 @@ def merge_frfsets(sets: Sequence[FRFSet]) -> FRFSet:
     if not sets:
         raise EMAError("merge_frfsets: no FRF sets given")
     first = sets[0]
+    factors = _merge_factors(sets)
+    outputs: list[DOF] = []
+    inputs: list[DOF] = []
+    for s in sets:
+        outputs += [d for d in s.outputs if d not in outputs]
+        inputs += [d for d in s.inputs if d not in inputs]
+    nodes = next((s.nodes for s in sets if s.nodes is not None), None)
+    units = next((s.unit_system for s in sets if s.unit_system is not None), None)
+    return FRFSet(
+        freq_hz=first.freq_hz,
+        H=_merged_matrix(sets, factors, outputs, inputs),
+        outputs=tuple(outputs),
+        inputs=tuple(inputs),
+        form=first.form,
+        units=first.units,
+        nodes=nodes,
+        unit_system=units,
+        sources=tuple(src for s in sets for src in s.sources),
+    )
+
+
+def _merge_factors(sets: list[FRFSet]) -> list[float]:
+    """Each set's factor into the first set's units, once its axis, form and units are found to agree with it."""
+    first = sets[0]
     first_name = ", ".join(first.sources) or "the first set"
     factors = [1.0]
     for s in sets[1:]:
@@ -534,12 +405,12 @@ def merge_frfsets(sets: Sequence[FRFSet]) -> FRFSet:
         if factor != 1.0:
             log.info("merge: %s converted from %s to %s (x %.6g)", name, s.units, first.units, factor)
         factors.append(factor)
-    outputs: list[DOF] = []
-    inputs: list[DOF] = []
-    for s in sets:
-        outputs += [d for d in s.outputs if d not in outputs]
-        inputs += [d for d in s.inputs if d not in inputs]
-    H = np.full((len(outputs), len(inputs), first.n_freq), np.nan + 0j)
+    return factors
+
+
+def _merged_matrix(sets: list[FRFSet], factors: list[float], outputs: list[DOF], inputs: list[DOF]) -> np.ndarray:
+    """The sets' FRFs (times their factors) on the merged layout; every (output, input) pair exactly once."""
+    H = np.full((len(outputs), len(inputs), sets[0].n_freq), np.nan + 0j)
     filled = np.zeros((len(outputs), len(inputs)), dtype=bool)
     for s, factor in zip(sets, factors, strict=True):
         for a, out in enumerate(s.outputs):
@@ -555,16 +426,4 @@ def merge_frfsets(sets: Sequence[FRFSet]) -> FRFSet:
             f"merge: FRF {outputs[o]} / {inputs[i]} is missing ({int((~filled).sum())} of "
             f"{filled.size} pairs unmeasured); the merged set must be a full matrix"
         )
-    nodes = next((s.nodes for s in sets if s.nodes is not None), None)
-    units = next((s.unit_system for s in sets if s.unit_system is not None), None)
-    return FRFSet(
-        freq_hz=first.freq_hz,
-        H=H,
-        outputs=tuple(outputs),
-        inputs=tuple(inputs),
-        form=first.form,
-        units=first.units,
-        nodes=nodes,
-        unit_system=units,
-        sources=tuple(src for s in sets for src in s.sources),
-    )
+    return H

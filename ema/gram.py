@@ -1,6 +1,6 @@
 """The Gauss–Newton normal equations of a family window, from Gram matrices of its kernels over the lines.
 
-Every column of the window's design and of Kaufman's Jacobian (:class:`ema.family._Window`) is, over the
+Every column of the window's design and of Kaufman's Jacobian (:class:`ema.family.FamilyWindow`) is, over the
 rows (reference i, line l), a sum of separable terms ``c_i k(ω_l)``: a coefficient per reference times one of
 a few kernels of the frequency. Mode r's columns use only ``a_r = g/(jω − λ_r)``, ``b_r = g/(jω − conj λ_r)``
 and their derivatives in λ; the residual terms use ``g/(jω)²`` and ``g``. So every inner product of two
@@ -42,7 +42,7 @@ def _coefficients(lam: np.ndarray, part: np.ndarray, pivot: np.ndarray
         The columns Re ψ_r and Im ψ_r of the design.
     WD : ndarray of complex, shape (n, 4 n_in, 4, n_in)
         The derivatives of those two columns (interleaved: d1, d2) in f, log ζ, then Re and Im of each
-        non-pivot participation, in :meth:`ema.family._Window.normal_equations`' order.
+        non-pivot participation, in :meth:`ema.family.FamilyWindow.normal_equations`' order.
     """
     ni, n = part.shape
     P = part.T                                                      # (n, n_in)

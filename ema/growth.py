@@ -25,7 +25,6 @@ from __future__ import annotations
 
 import logging
 from collections.abc import Callable, Sequence
-from dataclasses import replace
 from typing import NamedTuple
 
 import numpy as np
@@ -112,7 +111,4 @@ def _count(selection: PoleSelection, band: tuple[float, float]) -> int:
 
 def _up_to(diagram: StabilizationDiagram, top: float) -> StabilizationDiagram:
     """The diagram of the orders up to ``top`` (the stability classes compare each order with the one before)."""
-    keep = diagram.order <= top
-    fields = ("order", "pole", "frequencies_hz", "damping_ratio", "vector", "stability", "mac_prev")
-    return replace(diagram, orders=tuple(o for o in diagram.orders if o <= top),
-                   **{name: getattr(diagram, name)[keep] for name in fields})
+    return diagram.take(diagram.order <= top, orders=tuple(o for o in diagram.orders if o <= top))

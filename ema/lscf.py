@@ -26,7 +26,7 @@ import scipy.linalg as sla
 from tqdm import tqdm
 
 from .frf import FRFSet
-from .poles import PoleSet, band_data, check_workspace, resolve_orders, single_thread_blas
+from .poles import BandData, PoleSet, band_data, check_workspace, resolve_orders, single_thread_blas
 
 __all__ = ["lscf", "max_supported_order"]
 
@@ -148,6 +148,36 @@ def lscf(
     check_workspace(16.0 * n_series * 2 * max(n_f, P) + 8.0 * P * P * n_i * (4 * n_o + 2 * n_i),
                     f"{where} at order {p_max} on {size}")
 
+    L, W, T, Ts = _reduced_matrices(data, p_max)
+
+    G = np.zeros((P * n_i, P * n_i))
+    wanted = set(order_list)
+    found: list[tuple[int, np.ndarray, np.ndarray]] = []
+    with single_thread_blas():
+        bar = tqdm(total=len(order_list), desc="LSCF", unit="order", disable=not progress, leave=False)
+        for row in range(P):
+            Wr = W[row]
+            G += Wr.T @ Wr
+            p = row
+            if p not in wanted:
+                continue
+            c = (p + 1) * n_i
+            poles = _order_poles(p, T[:c, :c] - G[:c, :c], W, L, Ts, data)
+            if poles is not None:
+                found.append(poles)
+            bar.update(1)
+        bar.close()
+    return PoleSet.from_orders("lscf", data.band_hz, order_list, found, n_o * n_i, frf.outputs, frf.inputs)
+
+
+def _reduced_matrices(data: BandData, p_max: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
+    """The Cholesky factor L of R, ``W = L⁻¹ S_o`` (shape (P, n_o, P n_i)), T and the sampling time, P = p_max + 1.
+
+    R, S_o and T are Toeplitz in the coefficient index, built from the power sums of the lines (module notes).
+    """
+    H = data.H
+    n_o, n_i, n_f = H.shape
+    P = p_max + 1
     # Power sums: r (R), s_oi (S) and t_ii' (T), all for powers -p..p.
     flat = H.reshape(n_o * n_i, n_f)
     gram = np.einsum("oaf,obf->abf", H.conj(), H).reshape(n_i * n_i, n_f)
@@ -167,58 +197,56 @@ def lscf(
 
     L = _cholesky(R)
     W = sla.solve_triangular(L, np.transpose(S, (1, 0, 2)).reshape(P, n_o * P * n_i), lower=True)
-    W = W.reshape(P, n_o, P * n_i)
+    return L, W.reshape(P, n_o, P * n_i), T, Ts
 
-    G = np.zeros((P * n_i, P * n_i))
-    wanted = set(order_list)
-    found: list[tuple[int, np.ndarray, np.ndarray]] = []
+
+def _order_poles(p: int, M: np.ndarray, W: np.ndarray, L: np.ndarray, Ts: float, data: BandData
+                 ) -> tuple[int, np.ndarray, np.ndarray] | None:
+    """Order p's poles in the band and their vectors, from its reduced matrix M (shape ((p+1) n_i, (p+1) n_i));
+    None when none lies in the band."""
+    n_o, n_i = data.H.shape[:2]
+    c = (p + 1) * n_i
+    k = p * n_i
+    try:
+        top = -np.linalg.solve(M[:k, :k], M[:k, k:])
+    except np.linalg.LinAlgError:
+        top = -np.linalg.lstsq(M[:k, :k], M[:k, k:], rcond=None)[0]
+    alpha = np.vstack([top, np.eye(n_i)])  # (c, n_i)
+    z, lvec = _companion_roots(top, p, n_i)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        lam = np.log(z.astype(np.complex128)) / Ts
+    fn = np.abs(lam) / (2 * np.pi)
     f_lo, f_hi = data.band_hz
-    with single_thread_blas():
-        bar = tqdm(total=len(order_list), desc="LSCF", unit="order", disable=not progress, leave=False)
-        for row in range(P):
-            Wr = W[row]
-            G += Wr.T @ Wr
-            p = row
-            if p not in wanted:
-                continue
-            c = (p + 1) * n_i
-            M = T[:c, :c] - G[:c, :c]
-            k = p * n_i
-            try:
-                top = -np.linalg.solve(M[:k, :k], M[:k, k:])
-            except np.linalg.LinAlgError:
-                top = -np.linalg.lstsq(M[:k, :k], M[:k, k:], rcond=None)[0]
-            alpha = np.vstack([top, np.eye(n_i)])  # (c, n_i)
-            if n_i == 1:
-                comp = np.zeros((p, p))
-                if p > 1:
-                    comp[:-1, 1:] = np.eye(p - 1)
-                comp[-1, :] = -top[:, 0]
-                z = np.linalg.eigvals(comp)
-                lvec = np.ones((1, z.size), dtype=np.complex128)
-            else:
-                comp = np.zeros((k, k))
-                if p > 1:
-                    comp[:-n_i, n_i:] = np.eye(k - n_i)
-                comp[-n_i:, :] = -top.T
-                z, V = np.linalg.eig(comp)
-                lvec = V[:n_i, :]
-            with np.errstate(divide="ignore", invalid="ignore"):
-                lam = np.log(z.astype(np.complex128)) / Ts
-            fn = np.abs(lam) / (2 * np.pi)
-            keep = (lam.imag > 0) & (fn >= f_lo) & (fn <= f_hi) & np.isfinite(lam)
-            lam, zk, lvec = lam[keep], z[keep], lvec[:, keep]
-            if lam.size:
-                # numerator coefficients theta_o = -R_p^-1 S_o alpha, then psi = B(z_r) l_r
-                Wa = W[: p + 1, :, :c] @ alpha  # (p+1, n_o, n_i)
-                theta = -sla.solve_triangular(L[: p + 1, : p + 1].T, Wa.reshape(p + 1, n_o * n_i), lower=False)
-                theta = theta.reshape(p + 1, n_o, n_i)
-                Zp = zk[None, :] ** np.arange(p + 1)[:, None]  # (p+1, n_r)
-                Bl = np.einsum("joi,ir,jr->or", theta, lvec, Zp)  # (n_o, n_r)
-                # undo the per-output weights relative to each other (vectors are defined up to a scale)
-                Bl = Bl / (data.scale / np.max(data.scale))[:, None]
-                vec = (Bl[:, None, :] * lvec[None, :, :]).reshape(n_o * n_i, lam.size).T if n_i > 1 else Bl.T
-                found.append((p, lam, vec))
-            bar.update(1)
-        bar.close()
-    return PoleSet.from_orders("lscf", data.band_hz, order_list, found, n_o * n_i, frf.outputs, frf.inputs)
+    keep = (lam.imag > 0) & (fn >= f_lo) & (fn <= f_hi) & np.isfinite(lam)
+    lam, zk, lvec = lam[keep], z[keep], lvec[:, keep]
+    if not lam.size:
+        return None
+    # numerator coefficients theta_o = -R_p^-1 S_o alpha, then psi = B(z_r) l_r
+    Wa = W[: p + 1, :, :c] @ alpha  # (p+1, n_o, n_i)
+    theta = -sla.solve_triangular(L[: p + 1, : p + 1].T, Wa.reshape(p + 1, n_o * n_i), lower=False)
+    theta = theta.reshape(p + 1, n_o, n_i)
+    Zp = zk[None, :] ** np.arange(p + 1)[:, None]  # (p+1, n_r)
+    Bl = np.einsum("joi,ir,jr->or", theta, lvec, Zp)  # (n_o, n_r)
+    # undo the per-output weights relative to each other (vectors are defined up to a scale)
+    Bl = Bl / (data.scale / np.max(data.scale))[:, None]
+    vec = (Bl[:, None, :] * lvec[None, :, :]).reshape(n_o * n_i, lam.size).T if n_i > 1 else Bl.T
+    return p, lam, vec
+
+
+def _companion_roots(top: np.ndarray, p: int, n_i: int) -> tuple[np.ndarray, np.ndarray]:
+    """Roots z of the matrix denominator of order p (``alpha_p = I``, the others ``top``, shape (p n_i, n_i)) and
+    their participation vectors l, shape (n_i, n_roots): eigenvalues of the block companion matrix."""
+    k = p * n_i
+    if n_i == 1:
+        comp = np.zeros((p, p))
+        if p > 1:
+            comp[:-1, 1:] = np.eye(p - 1)
+        comp[-1, :] = -top[:, 0]
+        z = np.linalg.eigvals(comp)
+        return z, np.ones((1, z.size), dtype=np.complex128)
+    comp = np.zeros((k, k))
+    if p > 1:
+        comp[:-n_i, n_i:] = np.eye(k - n_i)
+    comp[-n_i:, :] = -top.T
+    z, V = np.linalg.eig(comp)
+    return z, V[:n_i, :]

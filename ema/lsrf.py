@@ -19,6 +19,23 @@ Hessenberg matrix with a rank-one correction in its last column). Complex coeffi
 the band appear once (no conjugate), so order n holds up to n modes; modes outside the band are absorbed
 by the numerators, which suits local (band-by-band) fitting.
 
+Normalisation and reweighting of the complex model: with ``a_n = 1`` the noise part of the normal matrix drives the
+denominator towards the polynomial orthogonal on the lines, whose roots are real: in the complex model every spare
+order adds a pole with about zero damping somewhere in the band, and those poles crowd the stabilization diagram of
+a dense band. Minimising ``a^H M a`` under ``D(x0) = 1`` instead gives ``a ~ M^-1 conj(q(x0))``, a kernel
+(Christoffel-Darboux) polynomial whose spurious roots lie in the half-plane opposite ``x0``. A physical
+pole ``lambda = -sigma + j omega_d`` sits at ``x = (omega_d - omega_c + j sigma) / omega_h`` (upper
+half-plane), so ``x0 = j`` sends the noise poles to negative damping, where the diagram drops them.
+Noise-free data are fitted exactly under either normalisation.
+
+The linearised error ``D h - N`` weights each line by ``|D|``, which is small near the poles already
+found: a close mode next to a found one is fitted last, after noise (Levy's bias), so dense clusters
+need very high orders. Weighting the lines by ``1 / |D_s|`` (one Sanathanan-Koerner step) turns the
+error near the found poles into the output error ``h - N / D_s`` and resolves such clusters at
+moderate orders. Every order of the series is refitted with the same weights, so the stabilization
+diagram stays a diagram of one estimator. Distances to roots closer to the axis than one line are
+floored at one line, so a spurious near-axis root cannot dominate the weights.
+
 References: Richardson & Formenti, IMAC 1 (1982) and IMAC 3 (1985); Forsythe, J. SIAM 5 (1957);
 Brubeck, Nakatsukasa & Trefethen, "Vandermonde with Arnoldi", SIAM Review 63 (2021).
 """
@@ -27,6 +44,7 @@ from __future__ import annotations
 
 import logging
 from collections.abc import Iterable
+from typing import NamedTuple
 
 import numpy as np
 from tqdm import tqdm
@@ -139,11 +157,11 @@ def lsrf(
         normalised by ``D(j) = 1`` (a point off the band, on the side of the stable poles) instead of a
         unit leading coefficient: the least-squares denominator is then a kernel polynomial of the noise,
         whose noise roots fall on the unstable side (negative damping) instead of on the frequency axis,
-        as the noise poles of LSCF do (see Notes).
+        as the noise poles of LSCF do (module notes).
     reweight : int, optional
         Sanathanan-Koerner passes (complex model only; default 2 there, 0 for "real"): each pass fits the
         highest order, then weights the lines by ``1 / |D_s(x)|``, ``D_s`` holding the stable roots it found
-        in or near the band; the series of orders is fitted with the last weights (see Notes).
+        in or near the band; the series of orders is fitted with the last weights (module notes).
 
     Returns
     -------
@@ -156,32 +174,8 @@ def lsrf(
     EMAError
         An order above :func:`max_supported_order` or one whose matrices would not fit in memory (checked
         before anything large is allocated); the data refusals of :func:`ema.poles.band_data`.
-
-    Notes
-    -----
-    With ``a_n = 1`` the noise part of the normal matrix drives the denominator towards the polynomial
-    orthogonal on the lines, whose roots are real: in the complex model every spare order adds a pole with
-    about zero damping somewhere in the band, and those poles crowd the stabilization diagram of a dense
-    band. Minimising ``a^H M a`` under ``D(x0) = 1`` instead gives ``a ~ M^-1 conj(q(x0))``, a kernel
-    (Christoffel-Darboux) polynomial whose spurious roots lie in the half-plane opposite ``x0``. A physical
-    pole ``lambda = -sigma + j omega_d`` sits at ``x = (omega_d - omega_c + j sigma) / omega_h`` (upper
-    half-plane), so ``x0 = j`` sends the noise poles to negative damping, where the diagram drops them.
-    Noise-free data are fitted exactly under either normalisation.
-
-    The linearised error ``D h - N`` weights each line by ``|D|``, which is small near the poles already
-    found: a close mode next to a found one is fitted last, after noise (Levy's bias), so dense clusters
-    need very high orders. Weighting the lines by ``1 / |D_s|`` (one Sanathanan-Koerner step) turns the
-    error near the found poles into the output error ``h - N / D_s`` and resolves such clusters at
-    moderate orders. Every order of the series is refitted with the same weights, so the stabilization
-    diagram stays a diagram of one estimator. Distances to roots closer to the axis than one line are
-    floored at one line, so a spurious near-axis root cannot dominate the weights.
     """
-    if coefficients not in ("real", "complex"):
-        raise ValueError(f"coefficients {coefficients!r}: expected 'real' or 'complex'")
-    real = coefficients == "real"
-    passes = (0 if real else 2) if reweight is None else int(reweight)
-    if passes < 0 or (real and passes):
-        raise ValueError(f"reweight {reweight!r}: expected >= 0, and 0 with real coefficients")
+    real, passes = _model(coefficients, reweight)
     data = band_data(frf, band, per="frf" if normalize else "scalar")
     n_o, n_i, n_f = data.H.shape
     h = data.H.reshape(n_o * n_i, n_f)
@@ -196,10 +190,7 @@ def lsrf(
                     f"{where} at order {order_list[-1]} on {size}")
     w = 2 * np.pi * data.freq_hz
     w_lo, w_hi = 2 * np.pi * data.band_hz[0], 2 * np.pi * data.band_hz[1]
-    if real:
-        wc, wh = 0.0, w_hi
-    else:
-        wc, wh = 0.5 * (w_lo + w_hi), 0.5 * (w_hi - w_lo)
+    wc, wh = (0.0, w_hi) if real else (0.5 * (w_lo + w_hi), 0.5 * (w_hi - w_lo))
     x = (w - wc) / wh
     weight = None
     for _ in range(passes):
@@ -207,6 +198,17 @@ def lsrf(
         weight = _sk_weight(x, top_roots, weight)
     found, _ = _lsrf_pass(h, x, weight, order_list, real, data, (wc, wh), progress)
     return PoleSet.from_orders("lsrf", data.band_hz, order_list, found, n_frf, frf.outputs, frf.inputs)
+
+
+def _model(coefficients: str, reweight: int | None) -> tuple[bool, int]:
+    """Whether the model is real, and its number of Sanathanan-Koerner passes; ValueError for a bad choice."""
+    if coefficients not in ("real", "complex"):
+        raise ValueError(f"coefficients {coefficients!r}: expected 'real' or 'complex'")
+    real = coefficients == "real"
+    passes = (0 if real else 2) if reweight is None else int(reweight)
+    if passes < 0 or (real and passes):
+        raise ValueError(f"reweight {reweight!r}: expected >= 0, and 0 with real coefficients")
+    return real, passes
 
 
 def max_supported_order(n_freq: int, n_frf: int, real: bool = True) -> int:
@@ -293,6 +295,29 @@ def _frf_grams(h: np.ndarray, Q: np.ndarray, real: bool) -> np.ndarray:
     return S
 
 
+class _Basis(NamedTuple):
+    """The basis of one LSRF pass: values on the lines ``Q`` (n_f, P), recurrence ``Hs`` (P, P - 1), the norm
+    ``q_0`` is built on (:func:`evaluate_basis`' ``m_points``) and the phases ``j^j`` (P,) that make the real
+    model's polynomials real (ones for the complex model)."""
+
+    Q: np.ndarray
+    Hs: np.ndarray
+    m_points: float
+    jpow: np.ndarray
+
+
+def _basis(x: np.ndarray, weight: np.ndarray | None, n_max: int, real: bool) -> _Basis:
+    """The orthonormal basis of degree ``n_max`` on the normalised lines ``x`` (weighted, complex model)."""
+    P = n_max + 1
+    if real:
+        # basis orthonormal on the symmetric lines {-w_k} U {w_k}: q_j has the parity of j and
+        # psi_j = j^j q_j(w / w_hi) is a real polynomial in s = j w
+        Qfull, Hs = orthonormal_basis(np.concatenate([-x[::-1], x]), n_max)
+        return _Basis(Qfull[x.size:], Hs, 2.0 * x.size, 1j ** np.arange(P))
+    Q, Hs = orthonormal_basis(x, n_max, weight)
+    return _Basis(Q, Hs, float(x.size) if weight is None else float(np.sum(weight**2)), np.ones(P))
+
+
 def _lsrf_pass(
     h: np.ndarray, x: np.ndarray, weight: np.ndarray | None, order_list: tuple[int, ...], real: bool,
     data: BandData, centre: tuple[float, float], progress: bool,
@@ -302,36 +327,21 @@ def _lsrf_pass(
     Returns ``[(order, poles in the band (rad/s), numerators at them (n_r, n_frf))]`` and all the roots
     (in ``x``) of the highest order. ``centre`` is ``(omega_c, omega_h)`` with ``x = (omega - omega_c) / omega_h``.
     """
-    wc, wh = centre
-    f_lo, f_hi = data.band_hz
-    n_frf, n_f = h.shape
     n_max = order_list[-1]
     P = n_max + 1
-    if real:
-        # basis orthonormal on the symmetric lines {-w_k} U {w_k}: q_j has the parity of j and
-        # psi_j = j^j q_j(w / w_hi) is a real polynomial in s = j w
-        Qfull, Hs = orthonormal_basis(np.concatenate([-x[::-1], x]), n_max)
-        Q = Qfull[n_f:]
-        m_points = 2.0 * n_f
-        jpow = 1j ** np.arange(P)
-        phase = (jpow.conj()[:, None] * jpow[None, :]).real  # Re j^(j - i): 0 for odd j - i, else +-1
-    else:
-        Q, Hs = orthonormal_basis(x, n_max, weight)
-        m_points = float(n_f) if weight is None else float(np.sum(weight**2))
-        jpow = np.ones(P)
-
-    T = Q.T @ (np.sum(np.abs(h) ** 2, axis=0)[:, None] * Q)
-    S = _frf_grams(h, Q, real)
+    basis = _basis(x, weight, n_max, real)
+    T = basis.Q.T @ (np.sum(np.abs(h) ** 2, axis=0)[:, None] * basis.Q)
+    S = _frf_grams(h, basis.Q, real)
     if real:
         # real unknowns: S_f <- Re(j^(j-i) S_f) (built so by _frf_grams), numerator b_f = 2 S_f a,
-        # M = T' - 2 sum S_f^T S_f
-        T = T * phase
+        # M = T' - 2 sum S_f^T S_f; Re j^(j - i) is 0 for odd j - i, else +-1
+        T = T * (basis.jpow.conj()[:, None] * basis.jpow[None, :]).real
         G = np.zeros((P, P))
     else:
         G = np.zeros((P, P), dtype=np.complex128)
     # values of the basis at the normalisation point x0 = j (complex model only); they grow like
     # (1 + sqrt 2)^j, which stays finite up to order ~800
-    anchor = None if real else evaluate_basis(Hs, np.array([1j]), n_max, m_points)[0]
+    anchor = None if real else evaluate_basis(basis.Hs, np.array([1j]), n_max, basis.m_points)[0]
     wanted = set(order_list)
     found: list[tuple[int, np.ndarray, np.ndarray]] = []
     top_roots = np.zeros(0, complex)
@@ -344,39 +354,58 @@ def _lsrf_pass(
             if n not in wanted:
                 continue
             bar.update(1)
-            M = T[: n + 1, : n + 1] - (2.0 if real else 1.0) * G[: n + 1, : n + 1]
-            if real:
-                try:
-                    top = -np.linalg.solve(M[:n, :n], M[:n, n])
-                except np.linalg.LinAlgError:
-                    top = -np.linalg.lstsq(M[:n, :n], M[:n, n], rcond=None)[0]
-                a = np.append(top, 1.0)
-            else:
-                # minimise a^H M a under D(x0) = q(x0)^T a = 1 (see lsrf Notes)
-                c0 = anchor[: n + 1] / np.linalg.norm(anchor[: n + 1])
-                try:
-                    y = np.linalg.solve(M, c0.conj())
-                except np.linalg.LinAlgError:
-                    y = np.linalg.lstsq(M, c0.conj(), rcond=None)[0]
-                a = y / (c0 @ y)
-                if not (np.all(np.isfinite(a)) and abs(a[n]) > 1e-14 * np.linalg.norm(a)):
-                    continue
-            c_coef = a * jpow[: n + 1]
-            C = Hs[:n, :n].astype(np.complex128)
-            C[:, n - 1] -= Hs[n, n - 1] * c_coef[:n] / c_coef[n]
+            a = _denominator(T[: n + 1, : n + 1] - (2.0 if real else 1.0) * G[: n + 1, : n + 1], n, real, anchor)
+            if a is None:
+                continue
+            c_coef = a * basis.jpow[: n + 1]
+            C = basis.Hs[:n, :n].astype(np.complex128)
+            C[:, n - 1] -= basis.Hs[n, n - 1] * c_coef[:n] / c_coef[n]
             xr = _comrade_roots(C, real)
             if n == n_max:
                 top_roots = xr
-            wr = wc + wh * xr
-            lam = 1j * wr
-            fn = np.abs(lam) / (2 * np.pi)
-            keep = (wr.real > 0) & (fn >= f_lo) & (fn <= f_hi) & np.isfinite(lam)
-            lam, xr = lam[keep], xr[keep]
-            if lam.size:
-                b = S[:, : n + 1, : n + 1] @ a * (2.0 if real else 1.0)  # (n_frf, n+1) numerator coefficients
-                V = evaluate_basis(Hs, xr, n, m_points) * jpow[None, : n + 1]  # (n_r, n+1)
-                # undo the per-FRF weights relative to each other (vectors are defined up to a scale)
-                num = (V @ b.T) / (data.scale.reshape(-1) / np.max(data.scale))[None, :]  # (n_r, n_frf)
-                found.append((n, lam, num))
+            poles = _order_poles(n, xr, a, S, basis, real, data, centre)
+            if poles is not None:
+                found.append(poles)
         bar.close()
     return found, top_roots
+
+
+def _denominator(M: np.ndarray, n: int, real: bool, anchor: np.ndarray | None) -> np.ndarray | None:
+    """The denominator coefficients of order n, shape (n + 1,), from its reduced matrix M; None where the complex
+    model's solution is not finite or has no leading coefficient."""
+    if real:
+        try:
+            top = -np.linalg.solve(M[:n, :n], M[:n, n])
+        except np.linalg.LinAlgError:
+            top = -np.linalg.lstsq(M[:n, :n], M[:n, n], rcond=None)[0]
+        return np.append(top, 1.0)
+    # minimise a^H M a under D(x0) = q(x0)^T a = 1 (see the module notes)
+    c0 = anchor[: n + 1] / np.linalg.norm(anchor[: n + 1])
+    try:
+        y = np.linalg.solve(M, c0.conj())
+    except np.linalg.LinAlgError:
+        y = np.linalg.lstsq(M, c0.conj(), rcond=None)[0]
+    a = y / (c0 @ y)
+    if not (np.all(np.isfinite(a)) and abs(a[n]) > 1e-14 * np.linalg.norm(a)):
+        return None
+    return a
+
+
+def _order_poles(n: int, xr: np.ndarray, a: np.ndarray, S: np.ndarray, basis: _Basis, real: bool, data: BandData,
+                 centre: tuple[float, float]) -> tuple[int, np.ndarray, np.ndarray] | None:
+    """Order n's poles in the band (rad/s) and the numerators at them (n_r, n_frf), from the denominator's
+    coefficients ``a`` and roots ``xr`` (in x); None when no root lies in the band."""
+    wc, wh = centre
+    f_lo, f_hi = data.band_hz
+    wr = wc + wh * xr
+    lam = 1j * wr
+    fn = np.abs(lam) / (2 * np.pi)
+    keep = (wr.real > 0) & (fn >= f_lo) & (fn <= f_hi) & np.isfinite(lam)
+    lam, xr = lam[keep], xr[keep]
+    if not lam.size:
+        return None
+    b = S[:, : n + 1, : n + 1] @ a * (2.0 if real else 1.0)  # (n_frf, n+1) numerator coefficients
+    V = evaluate_basis(basis.Hs, xr, n, basis.m_points) * basis.jpow[None, : n + 1]  # (n_r, n+1)
+    # undo the per-FRF weights relative to each other (vectors are defined up to a scale)
+    num = (V @ b.T) / (data.scale.reshape(-1) / np.max(data.scale))[None, :]  # (n_r, n_frf)
+    return n, lam, num

@@ -39,11 +39,14 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from .dominance import mode_dominance
 from .errors import EMAError
 from .fileio import atomic_path
-from .fit import METHODS, EMAResult, fit, mode_dominance
+from .fit import EMAResult, fit
 from .frf import FRFSet
+from .global_fit import METHODS
 from .lsfd import fit_quality, modal_model
+from .settings import FitSettings
 
 if TYPE_CHECKING:  # pragma: no cover - typing only; ema.picker imports matplotlib
     from .picker import PolePicker
@@ -340,8 +343,8 @@ def picks_from_picker(
 def fit_with_picks(frf: FRFSet, picks: Picks, freq_tol: float = 0.01, elsewhere: dict | None = None) -> EMAResult:
     """Fit FRFs with the hand picks of a picks file instead of the automatic selection.
 
-    Calls ``ema.fit(frf, method=picks.method, band=picks.band_hz, max_order=picks.max_order,
-    n_bands=picks.n_bands, picks=list(picks.picks))``: the diagram is computed again and each pick takes
+    Calls ``ema.fit(frf, picks.band_hz, FitSettings(method=picks.method, n_bands=picks.n_bands),
+    max_order=picks.max_order, picks=list(picks.picks))``: the diagram is computed again and each pick takes
     the pole of its order nearest in frequency (:func:`ema.selection.select_picks`). Picked modes are never
     dropped by the dominance filter.
 
@@ -382,8 +385,8 @@ def fit_with_picks(frf: FRFSet, picks: Picks, freq_tol: float = 0.01, elsewhere:
             raise EMAError(f"{where}: pick ({order}, {f:.6g} Hz): order {order} above max_order "
                            f"{picks.max_order}, no pole of that order in the diagram")
     try:
-        result = fit(frf, method=picks.method, band=picks.band_hz, max_order=picks.max_order,
-                     n_bands=picks.n_bands, picks=list(picks.picks))
+        result = fit(frf, picks.band_hz, FitSettings(method=picks.method, n_bands=picks.n_bands),
+                     max_order=picks.max_order, picks=list(picks.picks))
     except EMAError as exc:
         raise EMAError(f"{where}: {' '.join(str(exc).split())}") from None
     d = result.diagram

@@ -117,8 +117,8 @@ def plot_families(frf: FRFSet, model: ModalModel, windows: list[tuple[float, flo
 
     Each FRF is divided by its own median magnitude in the window before the RMS over all FRFs is taken. Why: a
     plain RMS is the strongest FRFs' curve, and modes that only a few response points see (disk modes at blade
-    tips, found by :func:`ema.fit.fill_unexplained`) vanish under the tails of strong ones; relative to each FRF's
-    own level, they stand out as they do in the FRFs that see them. The model is divided by the same medians.
+    tips, found by :func:`ema.unexplained.fill_unexplained`) vanish under the tails of strong ones; relative to
+    each FRF's own level, they stand out as they do in the FRFs that see them. The model is divided by the same medians.
 
     Parameters
     ----------

@@ -17,6 +17,7 @@ __all__ = [
     "PoleSet",
     "BandData",
     "band_data",
+    "in_band",
     "resolve_orders",
     "check_workspace",
     "merge_polesets",
@@ -240,6 +241,11 @@ def band_data(frf: FRFSet, band: tuple[float, float] | None, per: str = "output"
     else:
         raise ValueError(f"normalisation {per!r} not one of 'output', 'frf', 'scalar', 'none'")
     return BandData(freq_hz=f, H=Hs, scale=scale, band_hz=(f_lo, f_hi))
+
+
+def in_band(freq_hz, band: tuple[float, float]) -> np.ndarray:
+    """Which frequencies (Hz, array-like) lie in ``band`` (edges included): bool, their shape."""
+    return (np.asarray(freq_hz) >= band[0]) & (np.asarray(freq_hz) <= band[1])
 
 
 def resolve_orders(

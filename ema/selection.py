@@ -12,7 +12,7 @@ cluster that covers enough orders is one mode.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -21,13 +21,15 @@ from .mac import ScaledRows, mac
 from .modal import pole_from_modal
 from .stabilization import STABLE_FD, STABLE_FDV, StabilizationDiagram
 
-__all__ = ["PoleSelection", "cluster_poles", "select_auto", "select_near", "select_picks"]
+__all__ = ["PoleSelection", "cluster_poles", "merge_selections", "select_auto", "select_near", "select_picks"]
 
 #: Pole-vector entries gathered per block of candidate pairs in :func:`cluster_poles` (complex, 16 bytes each).
 #: The bundled full-assembly test (72 outputs × 6 inputs, orders to 140) has 688 k pairs within the frequency
 #: tolerance: gathered at once, the two (688 k × 432) complex arrays and their normalised copies took the EMA
 #: process to 19 GB. In blocks of 1e7 entries (160 MB per array) it stays near 1 GB, with the same MACs.
 _PAIR_BLOCK_ENTRIES = 10_000_000
+#: The fields of :class:`PoleSelection` with one entry per mode.
+_MODE_FIELDS = ("pole", "frequencies_hz", "damping_ratio", "quality", "vector", "n_poles")
 
 
 @dataclass(frozen=True)
@@ -59,7 +61,7 @@ class PoleSelection:
     how: str
 
     def __post_init__(self) -> None:
-        for name in ("pole", "frequencies_hz", "damping_ratio", "quality", "vector", "n_poles"):
+        for name in _MODE_FIELDS:
             arr = np.array(getattr(self, name))
             arr.setflags(write=False)
             object.__setattr__(self, name, arr)
@@ -67,6 +69,17 @@ class PoleSelection:
     @property
     def n_modes(self) -> int:
         return int(self.pole.size)
+
+    def take(self, keep: np.ndarray) -> PoleSelection:
+        """The modes ``keep`` (bool or indices) selects."""
+        return replace(self, **{name: getattr(self, name)[keep] for name in _MODE_FIELDS})
+
+
+def merge_selections(a: PoleSelection, b: PoleSelection) -> PoleSelection:
+    """Two selections as one (ascending frequency), named after the first."""
+    both = {name: np.concatenate([getattr(a, name), getattr(b, name)]) for name in _MODE_FIELDS}
+    srt = np.argsort(np.abs(both["pole"]), kind="stable")
+    return replace(a, **{name: value[srt] for name, value in both.items()})
 
 
 def _empty(n_vec: int, how: str) -> PoleSelection:
@@ -124,9 +137,24 @@ def cluster_poles(
     f = diagram.frequencies_hz[idx]
     srt = np.argsort(f, kind="stable")
     idx, f = idx[srt], f[srt]
-    lam = diagram.pole[idx]
-    vec = diagram.vector[idx]
     orders = diagram.order[idx]
+    ii, jj, dist = _candidate_pairs(f, diagram.pole[idx], diagram.vector[idx], orders, freq_tol, mac_min)
+    roots = _link(f, orders, ii, jj, dist, freq_tol)
+    uniq, label = np.unique(roots, return_inverse=True)
+    # relabel by ascending mean frequency
+    means = np.array([f[label == k].mean() for k in range(uniq.size)])
+    rank = np.empty(uniq.size, dtype=int)
+    rank[np.argsort(means, kind="stable")] = np.arange(uniq.size)
+    return idx, rank[label]
+
+
+def _candidate_pairs(f: np.ndarray, lam: np.ndarray, vec: np.ndarray, orders: np.ndarray, freq_tol: float,
+                     mac_min: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The pairs (i < j) of poles (ascending frequency ``f``) that :func:`cluster_poles` may link, and their distance.
+
+    A pair is within ``freq_tol``, of two orders, with vectors of MAC at least ``mac_min``; its distance is
+    ``|lambda_i - lambda_j| / |lambda_j| + (1 - MAC)``.
+    """
     # all pairs (i < j) within the frequency tolerance (f is sorted)
     hi = np.searchsorted(f, f * (1.0 + freq_tol), side="right")
     counts = hi - np.arange(f.size) - 1
@@ -137,7 +165,13 @@ def cluster_poles(
     mac = sv.mac(ii, sv, jj, block_entries=_PAIR_BLOCK_ENTRIES)
     ok = (mac >= mac_min) & (orders[ii] != orders[jj])
     ii, jj, mac = ii[ok], jj[ok], mac[ok]
-    dist = np.abs(lam[ii] - lam[jj]) / np.abs(lam[jj]) + (1.0 - mac)
+    return ii, jj, np.abs(lam[ii] - lam[jj]) / np.abs(lam[jj]) + (1.0 - mac)
+
+
+def _link(f: np.ndarray, orders: np.ndarray, ii: np.ndarray, jj: np.ndarray, dist: np.ndarray, freq_tol: float
+          ) -> np.ndarray:
+    """Single linkage of the pairs ``(ii, jj)`` in order of ``dist`` under :func:`cluster_poles`' two cannot-links
+    (no order twice in a cluster, no cluster wider than ``2 freq_tol``); the root of each pole's cluster."""
     order_ids = {o: k for k, o in enumerate(sorted(set(orders.tolist())))}
     parent = list(range(f.size))
     order_mask = [1 << order_ids[o] for o in orders.tolist()]
@@ -160,13 +194,7 @@ def cluster_poles(
         parent[rb] = ra
         f_lo[ra], f_hi[ra] = lo, hi
         order_mask[ra] |= order_mask[rb]
-    roots = np.array([find(a) for a in range(f.size)])
-    uniq, label = np.unique(roots, return_inverse=True)
-    # relabel by ascending mean frequency
-    means = np.array([f[label == k].mean() for k in range(uniq.size)])
-    rank = np.empty(uniq.size, dtype=int)
-    rank[np.argsort(means, kind="stable")] = np.arange(uniq.size)
-    return idx, rank[label]
+    return np.array([find(a) for a in range(f.size)])
 
 
 def _representative(diagram: StabilizationDiagram, members: np.ndarray) -> tuple[complex, np.ndarray, float]:
@@ -242,10 +270,7 @@ def select_auto(
     f_lo, f_hi = diagram.band_hz
     margin = edge * (f_hi - f_lo)
     keep = (sel.quality >= min_quality) & (sel.frequencies_hz >= f_lo + margin) & (sel.frequencies_hz <= f_hi - margin)
-    return PoleSelection(
-        pole=sel.pole[keep], frequencies_hz=sel.frequencies_hz[keep], damping_ratio=sel.damping_ratio[keep],
-        quality=sel.quality[keep], vector=sel.vector[keep], n_poles=sel.n_poles[keep], how="auto",
-    )
+    return sel.take(keep)
 
 
 def select_near(

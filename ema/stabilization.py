@@ -2,13 +2,13 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from .errors import EMAError
 from .mac import ScaledRows
-from .poles import DOF, PoleSet
+from .poles import DOF, PoleSet, in_band
 
 __all__ = [
     "StabilityCriteria",
@@ -24,6 +24,8 @@ __all__ = [
 #: Stability classes, ordered: each one implies the previous.
 UNSTABLE, STABLE_F, STABLE_FD, STABLE_FDV = 0, 1, 2, 3
 CLASS_NAMES = {UNSTABLE: "new", STABLE_F: "f", STABLE_FD: "f+d", STABLE_FDV: "f+d+v"}
+#: The fields of :class:`StabilizationDiagram` with one entry per pole.
+_POLE_FIELDS = ("order", "pole", "frequencies_hz", "damping_ratio", "vector", "stability", "mac_prev")
 
 
 @dataclass(frozen=True)
@@ -97,7 +99,7 @@ class StabilizationDiagram:
     inputs: tuple[DOF, ...] = ()
 
     def __post_init__(self) -> None:
-        for name in ("order", "pole", "frequencies_hz", "damping_ratio", "vector", "stability", "mac_prev"):
+        for name in _POLE_FIELDS:
             arr = np.array(getattr(self, name))
             arr.setflags(write=False)
             object.__setattr__(self, name, arr)
@@ -109,6 +111,14 @@ class StabilizationDiagram:
     def count(self, cls: int) -> int:
         """Number of poles of stability class ``cls`` or better."""
         return int(np.sum(self.stability >= cls))
+
+    def take(self, keep: np.ndarray, **changes) -> StabilizationDiagram:
+        """The diagram of the poles ``keep`` (bool or indices) selects, with the other fields in ``changes``."""
+        return replace(self, **changes, **{name: getattr(self, name)[keep] for name in _POLE_FIELDS})
+
+    def within(self, band: tuple[float, float]) -> StabilizationDiagram:
+        """The diagram's poles inside ``band`` (Hz), with that band."""
+        return self.take(in_band(self.frequencies_hz, band), band_hz=band)
 
 
 def _match_previous(

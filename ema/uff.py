@@ -3,7 +3,8 @@
 Reading is strict: anything that is not an FRF, not supported, inconsistent or malformed raises
 :class:`~ema.errors.UFFError`, a ``ValueError`` whose one-line message names the file, the data set
 (0-based index in the file) and the field. Coherence data sets (58, function type 6, one per FRF) may sit
-beside the FRFs: :func:`read_uff` checks and passes over them, :func:`read_coherence` returns them.
+beside the FRFs: :func:`read_uff` checks and passes over them, :func:`read_coherence` returns them. The format's
+codes and block checks are in :mod:`ema.uff_format`; writing is in :mod:`ema.uff_write` (exported here).
 """
 
 from __future__ import annotations
@@ -14,15 +15,14 @@ import re
 import warnings
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any
 
 import numpy as np
-import pyuff
 
-from .errors import EMAError, UFFError
-from .fileio import atomic_path
+from .errors import UFFError
 from .frf import DOF, FRF_FORMS, FRFSet, Nodes, UnitSystem, line_ranges, merge_frfsets
 from .modal import ModalModel
+from .uff_format import ABSCISSA_TYPES, FUNCTION_TYPES, ORDINATE_FORM, open_uff, read_set, required_field
+from .uff_write import write_frfs, write_modes
 
 __all__ = [
     "FUNCTION_TYPES",
@@ -38,175 +38,6 @@ __all__ = [
 
 log = logging.getLogger(__name__)
 
-#: UFF 58 record 6 field 1: function identification.
-FUNCTION_TYPES: dict[int, str] = {
-    0: "general or unknown",
-    1: "time response",
-    2: "auto spectrum",
-    3: "cross spectrum",
-    4: "frequency response function",
-    5: "transmissibility",
-    6: "coherence",
-    7: "auto correlation",
-    8: "cross correlation",
-    9: "power spectral density",
-    10: "energy spectral density",
-    11: "probability density function",
-    12: "spectrum",
-    13: "cumulative frequency distribution",
-    14: "peaks valley",
-    15: "stress/cycles",
-    16: "strain/cycles",
-    17: "orbit",
-    18: "mode indicator function",
-    19: "force pattern",
-    20: "partial power",
-    21: "partial coherence",
-    22: "eigenvalue",
-    23: "eigenvector",
-    24: "shock response spectrum",
-    25: "finite impulse response filter",
-    26: "multiple coherence",
-    27: "order function",
-    28: "phase compensation",
-}
-
-# UFF specific data types (record 9/10 field 1) that fix the FRF form.
-_ORDINATE_FORM = {8: "receptance", 11: "mobility", 12: "accelerance"}
-_FORM_ORDINATE = {v: k for k, v in _ORDINATE_FORM.items()}
-_FORM_UNITS = {"receptance": "m/N", "mobility": "m/s/N", "accelerance": "m/s^2/N"}
-_ABSCISSA_TYPES = {0: "unknown", 17: "time", 18: "frequency"}
-
-
-# --------------------------------------------------------------------------------------------- reading
-# pyuff's rule for a data set delimiter: "    -1" followed by the end of the file, a line break, or 74 blanks.
-_DELIMITER = b"    -1"
-
-
-def _delimiters(raw: bytes) -> list[int]:
-    """Byte offsets of the data set delimiters, found exactly as pyuff finds them (so blocks pair the same)."""
-    out = []
-    n = len(raw)
-    pos = raw.find(_DELIMITER)
-    while pos != -1:
-        end = pos + len(_DELIMITER)
-        if end == n or raw[end] in (10, 13) or (end + 74 < n and raw[end : end + 74] == b" " * 74):
-            out.append(pos)
-        pos = raw.find(_DELIMITER, pos + 1)
-    return out
-
-
-def _block_type(raw: bytes, start: int) -> str:
-    """The type field of the data set that starts at delimiter offset ``start`` ("58b", "2411" or "?")."""
-    lines = raw[start : start + 200].splitlines()
-    field = lines[1][:7].decode("ascii", errors="replace").strip() if len(lines) > 1 else ""
-    return field if re.fullmatch(r"\d+b?", field) else "?"
-
-
-def _line_no(raw: bytes, offset: int) -> int:
-    return raw.count(b"\n", 0, offset) + 1
-
-
-# Values per point (even / uneven abscissa) and bytes per value of the UFF 58 ordinate data types.
-_VALUES_PER_POINT = {2: (1, 2), 4: (1, 2), 5: (2, 3), 6: (2, 3)}
-_VALUE_BYTES = {2: 4, 4: 8, 5: 4, 6: 8}
-
-
-def _check_58b(path: Path, raw: bytes, start: int, end: int, index: int) -> None:
-    """Refuse a binary 58b data set whose payload is shorter or longer than its header announces.
-
-    The payload must hold ``num_pts`` points of the ordinate data type (record 7); the ID line's byte count
-    must not exceed it. pyuff's own writer states ``num_pts * value size`` there even for complex data (half
-    the payload), so a byte count below the payload is accepted; one above it means lost bytes. A line break
-    before the closing delimiter (a common exporter habit that pyuff tolerates) is allowed.
-    """
-    block = raw[start:end]
-    lines = block.splitlines(True)
-    if len(lines) < 13:
-        raise UFFError(str(path), f"binary 58b data set has {len(lines) - 1} header lines, expected 12 (truncated)",
-                       index)
-    header = b"".join(lines[:13])
-    payload = len(block) - len(header)
-    id_line, rec7 = lines[1].decode("ascii", "replace"), lines[8].decode("ascii", "replace")
-    try:
-        n_bytes = int(id_line[31:43])
-        ord_type, num_pts, spacing = int(rec7[0:10]), int(rec7[10:20]), int(rec7[20:30])
-    except ValueError as exc:
-        raise UFFError(str(path), f"malformed binary 58b header ({exc})", index, "num_pts") from exc
-    if ord_type not in _VALUE_BYTES:
-        return  # pyuff refuses it when reading, with its own message
-    expected = num_pts * _VALUES_PER_POINT[ord_type][0 if spacing else 1] * _VALUE_BYTES[ord_type]
-    extra = payload - expected
-    if extra == 0 or (extra in (1, 2) and block[len(block) - extra :] in (b"\n", b"\r\n", b"\r")):
-        if n_bytes <= expected:
-            return
-        raise UFFError(str(path), f"header announces {n_bytes} data bytes but the data set holds {expected}"
-                       " (truncated or damaged file)", index, "n_bytes")
-    raise UFFError(
-        str(path), f"header announces {num_pts} points ({expected} data bytes) but the data set holds {payload} bytes"
-        " (truncated or damaged file)", index, "num_pts",
-    )
-
-
-def _check_structure(path: Path, raw: bytes, marks: list[int]) -> None:
-    """Refuse files that end inside a data set, and binary 58b data sets of the wrong length.
-
-    pyuff pairs delimiters two by two and silently drops a last data set that has no closing delimiter (a
-    truncated file, or one that lost its final ``-1`` line), so such a file would be read as a smaller,
-    seemingly whole one. ``marks`` are the delimiters (:func:`_delimiters`).
-    """
-    if len(marks) % 2:
-        start = marks[-1]
-        raise UFFError(
-            str(path),
-            f"the last data set (type {_block_type(raw, start)}, from line {_line_no(raw, start)}) has no closing"
-            " '-1' line: the file is truncated or damaged",
-            len(marks) // 2,
-        )
-    for index, (start, end) in enumerate(zip(marks[::2], marks[1::2], strict=True)):
-        if _block_type(raw, start) == "58b":
-            _check_58b(path, raw, start, end, index)
-
-
-def _open(path: Path) -> tuple[Any, np.ndarray]:
-    if path.is_dir():
-        raise UFFError(str(path), "is a directory, expected a UFF file")
-    if not path.exists():
-        raise FileNotFoundError(f"{path}: no such file")
-    if not path.is_file():
-        raise UFFError(str(path), "not a regular file, expected a UFF file")
-    try:
-        raw = path.read_bytes()
-    except OSError as exc:
-        raise UFFError(str(path), f"cannot be read ({exc.strerror or exc})") from exc
-    if not raw or raw.isspace():
-        raise UFFError(str(path), "empty file, expected UFF data sets")
-    marks = _delimiters(raw)
-    if not marks:
-        what = "binary data" if b"\0" in raw[:4096] else "text"
-        raise UFFError(str(path), f"not a UFF file: {what} without any '-1' data set delimiter line")
-    _check_structure(path, raw, marks)
-    try:
-        uff = pyuff.UFF(str(path))
-        types = np.asarray(uff.get_set_types(), dtype=int).reshape(-1)
-    except Exception as exc:  # pyuff raises bare Exception (and others) on unreadable files
-        raise UFFError(str(path), f"not a readable UFF file ({type(exc).__name__}: {exc})") from exc
-    if types.size == 0:
-        raise UFFError(str(path), "no UFF data sets found")
-    return uff, types
-
-
-def _read_set(uff: Any, path: Path, index: int, dtype: int) -> dict:
-    try:
-        dset = uff.read_sets(int(index))
-    except Exception as exc:  # pyuff raises bare Exception (and others) on malformed data sets
-        raise UFFError(
-            str(path), f"malformed data set type {dtype} ({type(exc).__name__}: {exc})", index
-        ) from exc
-    if not isinstance(dset, dict):
-        raise UFFError(str(path), f"pyuff returned {type(dset).__name__} for data set type {dtype}", index)
-    return dset
-
 
 def _unit_form(label: str) -> str | None:
     """Guess the FRF form from a unit label such as ``"(1/N)*(m/s²)"``; None when unclear."""
@@ -220,22 +51,16 @@ def _unit_form(label: str) -> str | None:
     return None
 
 
-def _field(dset: dict, key: str, path: Path, index: int) -> Any:
-    if key not in dset:
-        raise UFFError(str(path), "required field missing", index, key)
-    return dset[key]
-
-
 def _axis_and_data(dset: dict, path: Path, index: int, what: str) -> tuple[np.ndarray, np.ndarray]:
     """A type-58 set's frequency axis and its values, checked: a frequency abscissa and as many values as the
     header announces (``what`` names the record in the message: "" for an FRF, "coherence ")."""
     abscissa = int(dset.get("abscissa_spec_data_type", 0))
     if abscissa not in (0, 18):
-        name = _ABSCISSA_TYPES.get(abscissa, "other")
+        name = ABSCISSA_TYPES.get(abscissa, "other")
         raise UFFError(str(path), f"{what}abscissa is {name} (type {abscissa}), expected frequency (18)", index,
                        "abscissa_spec_data_type")
-    x = np.asarray(_field(dset, "x", path, index), dtype=np.float64).reshape(-1)
-    data = np.asarray(_field(dset, "data", path, index)).reshape(-1)
+    x = np.asarray(required_field(dset, "x", path, index), dtype=np.float64).reshape(-1)
+    data = np.asarray(required_field(dset, "data", path, index)).reshape(-1)
     num_pts = int(dset.get("num_pts", data.size))
     if data.size != num_pts or x.size != num_pts:
         raise UFFError(
@@ -247,8 +72,8 @@ def _axis_and_data(dset: dict, path: Path, index: int, what: str) -> tuple[np.nd
 
 def _dof_pair(dset: dict, path: Path, index: int) -> tuple[DOF, DOF]:
     """(response, reference) (node, direction) of a type-58 set, directions checked."""
-    rsp = (int(_field(dset, "rsp_node", path, index)), int(_field(dset, "rsp_dir", path, index)))
-    ref = (int(_field(dset, "ref_node", path, index)), int(_field(dset, "ref_dir", path, index)))
+    rsp = (int(required_field(dset, "rsp_node", path, index)), int(required_field(dset, "rsp_dir", path, index)))
+    ref = (int(required_field(dset, "ref_node", path, index)), int(required_field(dset, "ref_dir", path, index)))
     for label, key in ((rsp, "rsp_dir"), (ref, "ref_dir")):
         if not -6 <= label[1] <= 6:
             raise UFFError(str(path), f"direction {label[1]} outside -6..6", index, key)
@@ -258,7 +83,7 @@ def _dof_pair(dset: dict, path: Path, index: int) -> tuple[DOF, DOF]:
 def _frf_from_set(
     dset: dict, path: Path, index: int, form: str | None
 ) -> tuple[DOF, DOF, np.ndarray, np.ndarray, str, str]:
-    func_type = int(_field(dset, "func_type", path, index))
+    func_type = int(required_field(dset, "func_type", path, index))
     if func_type != 4:
         name = FUNCTION_TYPES.get(func_type, "unknown")
         raise UFFError(str(path), f"not an FRF (function type {func_type} = {name})", index, "func_type")
@@ -280,7 +105,7 @@ def _frf_from_set(
     den_units = str(dset.get("orddenom_axis_units_lab", "")).strip()
     if den_units and den_units.upper() != "NONE":
         units = f"{units}/{den_units}" if units else f"1/{den_units}"
-    file_form = _ORDINATE_FORM.get(ordinate)
+    file_form = ORDINATE_FORM.get(ordinate)
     if denom not in (0, 13) and file_form is not None:
         raise UFFError(
             str(path), f"unsupported: ordinate denominator type {denom}, expected excitation force (13)",
@@ -353,12 +178,12 @@ def read_nodes(path: str | os.PathLike) -> Nodes | None:
         All node data sets concatenated, in file order.
     """
     path = Path(path)
-    uff, types = _open(path)
+    uff, types = open_uff(path)
     ids, xyz = [], []
     for index, t in enumerate(types):
         if t not in (15, 2411):
             continue
-        dset = _read_set(uff, path, index, int(t))
+        dset = read_set(uff, path, index, int(t))
         try:
             n = np.asarray(dset["node_nums"], dtype=float).reshape(-1)
             coords = np.column_stack([np.asarray(dset[k], dtype=float).reshape(-1) for k in ("x", "y", "z")])
@@ -376,11 +201,11 @@ def read_nodes(path: str | os.PathLike) -> Nodes | None:
 def read_units(path: str | os.PathLike) -> UnitSystem | None:
     """The units data set (164) of a UFF file, or None when there is none."""
     path = Path(path)
-    uff, types = _open(path)
+    uff, types = open_uff(path)
     for index, t in enumerate(types):
         if t != 164:
             continue
-        dset = _read_set(uff, path, index, 164)
+        dset = read_set(uff, path, index, 164)
         try:
             return UnitSystem(
                 code=int(dset["units_code"]),
@@ -480,7 +305,7 @@ def _read_file(
     if nonfinite not in ("refuse", "drop"):
         raise ValueError(f"nonfinite {nonfinite!r}: expected 'refuse' or 'drop'")
     path = Path(path)
-    uff, types = _open(path)
+    uff, types = open_uff(path)
     idx58 = [i for i, t in enumerate(types) if t == 58]
     if not idx58:
         kinds = ", ".join(str(t) for t in dict.fromkeys(types.tolist()))
@@ -489,7 +314,7 @@ def _read_file(
     coh_records: list[tuple[int, DOF, DOF, np.ndarray, np.ndarray]] = []
     first_refusal: UFFError | None = None
     for index in idx58:
-        dset = _read_set(uff, path, index, 58)
+        dset = read_set(uff, path, index, 58)
         if dset.get("func_type") == 6:  # coherence beside the FRFs (as write_frfs(coherence=...) puts it)
             coh_records.append((index, *_coherence_from_set(dset, path, index)))
             continue
@@ -622,26 +447,27 @@ def read_modes(path: str | os.PathLike) -> ModalModel:
     present. Damping is the modal viscous damping ratio of the file (0 when absent).
     """
     path = Path(path)
-    uff, types = _open(path)
+    uff, types = open_uff(path)
     idx = [i for i, t in enumerate(types) if t == 55]
     if not idx:
         raise UFFError(str(path), "no mode shapes in file (no data set 55)")
     freqs, damps, shapes = [], [], []
     dofs: tuple[DOF, ...] | None = None
     for index in idx:
-        dset = _read_set(uff, path, index, 55)
+        dset = read_set(uff, path, index, 55)
         analysis = int(dset.get("analysis_type", 0))
         if analysis == 2:
-            f = float(_field(dset, "freq", path, index))
+            f = float(required_field(dset, "freq", path, index))
             z = float(dset.get("modal_damp_vis", 0.0))
         elif analysis in (3, 7):
-            lam = complex(float(_field(dset, "eig_r", path, index)), float(_field(dset, "eig_i", path, index)))
+            lam = complex(float(required_field(dset, "eig_r", path, index)),
+                          float(required_field(dset, "eig_i", path, index)))
             wn = abs(lam)
             f, z = wn / (2 * np.pi), (-lam.real / wn if wn > 0 else 0.0)
         else:
             raise UFFError(str(path), f"unsupported analysis type {analysis}, expected 2 or 3", index,
                            "analysis_type")
-        nodes = np.asarray(_field(dset, "node_nums", path, index)).astype(np.int64).reshape(-1)
+        nodes = np.asarray(required_field(dset, "node_nums", path, index)).astype(np.int64).reshape(-1)
         comps = [k for k in ("r1", "r2", "r3", "r4", "r5", "r6") if k in dset]
         labels = tuple((int(n), d + 1) for n in nodes for d in range(len(comps)))
         values = np.column_stack([np.asarray(dset[k]).reshape(-1) for k in comps]).reshape(-1)
@@ -657,178 +483,3 @@ def read_modes(path: str | os.PathLike) -> ModalModel:
     return ModalModel(
         frequencies_hz=np.asarray(freqs), damping_ratio=np.asarray(damps), shapes=np.column_stack(shapes), dofs=dofs
     )
-
-
-# --------------------------------------------------------------------------------------------- writing
-def _atomic_write(path: Path, dsets: list[dict], single: bool = False) -> None:
-    """Write data sets to ``path`` through a temporary file in the same folder and ``os.replace``."""
-    with atomic_path(path) as tmp:
-        tmp.unlink()  # pyuff appends to existing files; start from nothing
-        pyuff.UFF(str(tmp)).write_sets(dsets, mode="add")
-        if single:
-            tmp.write_bytes(_as_single(tmp.read_bytes()))
-
-
-def _even_axis(freq: np.ndarray) -> bool:
-    """True when pyuff's even-spacing header (``%13.5e`` min and increment) reproduces ``freq`` exactly."""
-    f0, df = float(f"{freq[0]:13.5e}"), float(f"{freq[1] - freq[0]:13.5e}")
-    rebuilt = f0 + np.arange(freq.size) * df
-    return bool(np.all(np.abs(rebuilt - freq) <= 1e-14 * max(1.0, float(np.max(np.abs(freq))))))
-
-
-def _as_single(raw: bytes) -> bytes:
-    """pyuff's 58b output (double: complex type 6, real type 4) rewritten as single (types 5 and 2).
-
-    pyuff writes every binary value as a double whatever record 7 says, so single precision is made here:
-    each data set's payload is cast to little-endian float32, and the ID line's byte count and record 7's
-    ordinate type are updated. Nothing else changes (headers, labels, the axis).
-    """
-    out: list[bytes] = []
-    marks = _delimiters(raw)
-    done = 0
-    for start, end in zip(marks[0::2], marks[1::2], strict=False):  # opening and closing delimiters
-        block = raw[start:end]
-        lines = block.splitlines(True)
-        header = lines[:13]
-        payload = block[len(b"".join(header)):]
-        id_line, rec7 = header[1].decode("ascii"), header[8].decode("ascii")
-        single = {6: 5, 4: 2}.get(int(rec7[0:10]))  # complex FRFs, real coherence
-        if id_line[6:13] != "b     1" or single is None:
-            raise EMAError("single-precision UFF: expected pyuff's little-endian double 58b output")
-        n_values = len(payload) // 8
-        values = np.frombuffer(payload[: 8 * n_values], dtype="<f8").astype("<f4")
-        header[1] = (id_line[:31] + f"{values.nbytes:12d}" + id_line[43:]).encode("ascii")
-        header[8] = (f"{single:10d}" + rec7[10:]).encode("ascii")
-        out += [raw[done:start], b"".join(header), values.tobytes(), payload[8 * n_values:]]
-        done = end
-    out.append(raw[done:])
-    return b"".join(out)
-
-
-def _dset_58(binary: bool, id1: str, func_type: int, rsp: DOF, ref: DOF, freq: np.ndarray, even: bool,
-             data: np.ndarray, ordinate: tuple[int, str], denom: int) -> dict:
-    """One pyuff data set 58: an FRF (function type 4, complex) or a coherence (type 6, real)."""
-    return pyuff.prepare_58(
-        binary=int(bool(binary)), id1=id1[:80], id2="NONE", id3="NONE", id4="NONE", id5="NONE",
-        func_type=func_type, rsp_node=int(rsp[0]), rsp_dir=int(rsp[1]), ref_node=int(ref[0]), ref_dir=int(ref[1]),
-        ord_data_type=6 if np.iscomplexobj(data) else 4, abscissa_spacing=int(even), abscissa_min=float(freq[0]),
-        abscissa_inc=float(freq[1] - freq[0]) if even else 0.0, abscissa_spec_data_type=18,
-        abscissa_axis_units_lab="Hz", ordinate_spec_data_type=ordinate[0], ordinate_axis_units_lab=ordinate[1][:20],
-        orddenom_spec_data_type=denom, orddenom_axis_units_lab="NONE", data=np.ascontiguousarray(data),
-        x=np.ascontiguousarray(freq), rsp_ent_name="NONE", ref_ent_name="NONE",
-    )
-
-
-def _check_coherence(path: Path, frf: FRFSet, coherence: Any) -> np.ndarray:
-    """``coherence`` as float64 of the FRFs' shape, every value in [0, 1]; EMAError otherwise."""
-    coh = np.asarray(coherence, dtype=np.float64)
-    if coh.shape != frf.H.shape:
-        raise EMAError(f"{path}: coherence has shape {coh.shape}, expected the FRFs' {frf.H.shape}")
-    bad = ~(np.isfinite(coh) & (coh >= 0) & (coh <= 1))
-    if bad.any():
-        o, i, f = (int(k) for k in np.argwhere(bad)[0])
-        raise EMAError(f"{path}: coherence {frf.outputs[o]} / {frf.inputs[i]} is {coh[o, i, f]!r} at "
-                       f"{frf.freq_hz[f]} Hz, expected a value in [0, 1]")
-    return coh
-
-
-def write_frfs(
-    path: str | os.PathLike, frf: FRFSet, binary: bool = True, id1: str = "bladetwin FRF", precision: str = "double",
-    coherence: np.ndarray | None = None,
-) -> None:
-    """Write an :class:`FRFSet` as UFF 58 data sets (one per FRF), atomically.
-
-    Parameters
-    ----------
-    path : path-like
-        Target file; replaced if it exists.
-    frf : FRFSet
-    binary : bool
-        Write 58b (binary, IEEE double values: a lossless round trip). ASCII 58 keeps 12 significant
-        digits of each value (pyuff's ``%20.11e``), i.e. about 5e-12 relative.
-    id1 : str
-        First ID line of every data set.
-    precision : {"double", "single"}
-        Binary value size. "single" (ordinate type 5, IEEE float32: 6e-8 relative, far below any measured
-        FRF's noise) halves the file, as many analyser exports do; the virtual rig writes its campaigns so.
-    coherence : ndarray, shape (n_outputs, n_inputs, n_freq), optional
-        Ordinary coherence of each FRF, in [0, 1]: written after the FRFs as one data set 58 per FRF
-        (function type 6 "coherence", same DOFs and axis, real values, ordinate type 0 "unknown", as
-        analysers export it). :func:`read_coherence` reads it back; :func:`read_uff` passes over it.
-
-    Raises
-    ------
-    EMAError
-        A NaN or infinite value on a line above 0 Hz: UFF has no code for a missing value, and pyuff would
-        write 0 (or the largest double) in its place. A coherence of the wrong shape or outside [0, 1].
-
-    Notes
-    -----
-    The frequency axis is written as even spacing only when the ASCII header's ``%13.5e`` minimum and
-    increment rebuild it exactly; otherwise every abscissa is written with the values. A 0 Hz line with a
-    non-finite value (a receptance converted from another form, a synthesis with residual terms) is left
-    out of the file, as it is left out of every fit (and so is its coherence).
-    """
-    path = Path(path)
-    if precision not in ("double", "single"):
-        raise EMAError(f"precision {precision!r}: expected 'double' or 'single'")
-    if precision == "single" and not binary:
-        raise EMAError("precision 'single' needs binary=True (ASCII 58 values are written as text)")
-    coh = None if coherence is None else _check_coherence(path, frf, coherence)
-    bad = ~np.isfinite(frf.H)
-    if bad.any():
-        dc = frf.freq_hz == 0
-        wrong = bad & ~dc
-        if wrong.any():
-            o, i = (int(k) for k in np.argwhere(wrong.any(axis=2))[0])
-            raise EMAError(
-                f"{path}: cannot write FRF {frf.outputs[o]} / {frf.inputs[i]}: non-finite values on "
-                f"{line_ranges(frf.freq_hz, wrong[o, i])}; UFF has no code for a missing value"
-            )
-        log.info("%s: 0 Hz line left out (non-finite values there)", path)
-        frf = frf.band(float(frf.freq_hz[~dc][0]), float(frf.freq_hz[-1]))
-        coh = None if coh is None else coh[..., ~dc]
-    freq = frf.freq_hz
-    even = _even_axis(freq)
-    ordinate = (_FORM_ORDINATE[frf.form], frf.units or _FORM_UNITS[frf.form])
-    pairs = [(o, i) for o in range(frf.n_outputs) for i in range(frf.n_inputs)]
-    dsets = [_dset_58(binary, id1, 4, frf.outputs[o], frf.inputs[i], freq, even, frf.H[o, i], ordinate, 13)
-             for o, i in pairs]
-    if coh is not None:
-        dsets += [_dset_58(binary, id1, 6, frf.outputs[o], frf.inputs[i], freq, even, coh[o, i], (0, "NONE"), 0)
-                  for o, i in pairs]
-    _atomic_write(path, dsets, single=precision == "single")
-
-
-def write_modes(path: str | os.PathLike, model: ModalModel, id1: str = "bladetwin modes") -> None:
-    """Write a :class:`ModalModel` as UFF 55 data sets (normal modes, real part of the shapes), atomically.
-
-    Shapes are rotated so that their largest component is real before the real part is taken; DOFs with
-    a negative direction are written with the sign flipped onto the positive axis. Rotational DOFs (4..6)
-    are written when present (6 values per node).
-    """
-    path = Path(path)
-    nodes = sorted({n for n, _ in model.dofs})
-    n_comp = 6 if any(abs(d) > 3 for _, d in model.dofs) else 3
-    dsets = []
-    for m in range(model.n_modes):
-        phi = model.shapes[:, m]
-        k = int(np.argmax(np.abs(phi)))
-        phi = phi * np.exp(-1j * np.angle(phi[k])) if abs(phi[k]) > 0 else phi
-        r = np.zeros((n_comp, len(nodes)))
-        for (node, d), value in zip(model.dofs, phi.real, strict=True):
-            if d == 0:
-                continue
-            r[abs(d) - 1, nodes.index(node)] += np.sign(d) * value
-        kw = {f"r{c + 1}": r[c] for c in range(n_comp)}
-        dsets.append(
-            pyuff.prepare_55(
-                id1=id1[:80], id2="NONE", id3="NONE", id4="NONE", id5="NONE",
-                model_type=1, analysis_type=2, data_ch=2 if n_comp == 3 else 3, spec_data_type=8,
-                data_type=2, n_data_per_node=n_comp, load_case=1, mode_n=m + 1,
-                freq=float(model.frequencies_hz[m]), modal_m=1.0,
-                modal_damp_vis=float(model.damping_ratio[m]), modal_damp_his=0.0,
-                node_nums=np.asarray(nodes, dtype=int), **kw,
-            )
-        )
-    _atomic_write(path, dsets)

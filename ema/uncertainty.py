@@ -1,6 +1,6 @@
 """Standard deviations of identified poles: the linearised covariance of the least-squares fit (issue 31).
 
-The poles are the minimiser of the variable-projection misfit of :func:`ema.lsfd.refine_poles`: residues and
+The poles are the minimiser of the variable-projection misfit of :func:`ema.varpro.refine_poles`: residues and
 residual terms eliminated, natural frequencies and damping ratios free. Near that minimum the parameters' covariance is
 the sandwich ``(JᵀJ)⁻¹ (Σ_l J_lᵀ r_l r_lᵀ J_l) (JᵀJ)⁻¹`` (J: the residual's Jacobian in the frequencies (Hz)
 and damping ratios; r: the residual; l: the spectral lines, each a cluster of its real and imaginary parts in
@@ -12,18 +12,23 @@ dense family's neighbours enter the covariance, the far modes only through the r
 
 What it does not hold: bias, e.g. from a missed neighbour or a residual term that does not absorb the rest of
 the band. :func:`order_spread` measures part of that, the scatter of the mode's poles over the model orders
-of its stabilization diagram; :func:`ema.fit` adds the two in quadrature. The calibration against a known
+of its stabilization diagram; :func:`with_std` adds the two in quadrature. The calibration against a known
 truth is measured in docs/ema.md ("Uncertainty").
 """
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
 from .frf import FRFSet
-from .lsfd import _VarPro, local_windows
+from .lsfd import local_windows
+from .modal import ModalModel
+from .stabilization import StabilizationDiagram
+from .varpro import VarPro
 
-__all__ = ["pole_std", "order_spread"]
+__all__ = ["pole_std", "order_spread", "with_std"]
 
 
 def pole_std(frf: FRFSet, poles: np.ndarray, band: tuple[float, float], residuals: bool = True,
@@ -42,7 +47,7 @@ def pole_std(frf: FRFSet, poles: np.ndarray, band: tuple[float, float], residual
         Residual terms in each window's model, as in the fit.
     max_size : float
         Leave a mode's standard deviations NaN when its window's Jacobian would exceed this many entries (as
-        :func:`ema.lsfd.refine_poles` skips such a refinement): a very wide window, e.g. of a heavily damped
+        :func:`ema.varpro.refine_poles` skips such a refinement): a very wide window, e.g. of a heavily damped
         spurious pole, holds the whole band's modes.
 
     Returns
@@ -68,7 +73,7 @@ def pole_std(frf: FRFSet, poles: np.ndarray, band: tuple[float, float], residual
 def _covariance(frf: FRFSet, lam: np.ndarray, window: tuple[float, float], residuals: bool,
                 max_size: float) -> np.ndarray | None:
     """Covariance of (f_1..f_n [Hz], ζ_1..ζ_n) on one window (the sandwich of the module notes), or None."""
-    vp = _VarPro.of(frf, window, residuals, lam.size)
+    vp = VarPro.of(frf, window, residuals, lam.size)
     if vp.Yr.size * 2 * lam.size > max_size:
         return None
     res, c, Qa = vp.evaluate(lam)
@@ -123,3 +128,22 @@ def order_spread(frequencies_hz: np.ndarray, damping_ratio: np.ndarray, diagram)
         if np.count_nonzero(top) >= 3:
             out[i] = float(np.std(diagram.frequencies_hz[top]))
     return out
+
+
+def with_std(frf: FRFSet, model: ModalModel, band: tuple[float, float], diagram: StabilizationDiagram) -> ModalModel:
+    """The model with each mode's standard deviations: the fit's covariance (:func:`pole_std`) and the scatter over
+    the model orders (:func:`order_spread`), added in quadrature for the frequencies.
+
+    Parameters
+    ----------
+    frf : FRFSet
+    model : ModalModel
+        At least one mode.
+    band : (f_lo, f_hi)
+        Hz, the band of the model's fit.
+    diagram : StabilizationDiagram
+        The diagram the modes were selected from.
+    """
+    f_std, z_std = pole_std(frf, model.poles, band)
+    f_std = np.hypot(f_std, order_spread(model.frequencies_hz, model.damping_ratio, diagram))
+    return replace(model, frequency_std_hz=f_std, damping_std=z_std)

@@ -73,7 +73,7 @@ TEST_TYPES = ("blade", "disk", "d1b", "assembly")
 TRUTH_ONLY_FILM_KEYS = ("shift", "rotation")
 
 
-#: The truth twin the forked workers of :func:`_solve_parallel` read (set just before the pool is forked, so
+#: The truth twin the forked workers of :func:`solve_parallel` read (set just before the pool is forked, so
 #: the children share it copy-on-write instead of receiving a pickled copy of the FE model).
 _TWIN = None
 
@@ -88,7 +88,7 @@ def _solve_one_with(twin, slots, with_disk: bool, n: int, state: str = "d1b") ->
     return asm.meas_labels, solve_truth(asm, n)
 
 
-def _solve_parallel(twin, jobs: list[tuple], workers: int) -> list[tuple]:
+def solve_parallel(twin, jobs: list[tuple], workers: int) -> list[tuple]:
     """Truth solves of independent tests, ``workers`` at a time (each with one MKL thread, as always).
 
     The solves are bitwise the same as one by one (each runs single-threaded); only the wall time changes.
@@ -438,7 +438,7 @@ class _CampaignWriter:
         # (the measurements that follow draw their random numbers in the same order as ever).
         self.say(f"d1b truth solves ({n_blades}, {self.workers} at a time)")
         jobs = [([s], True, D1B_MODES + D1B_MODES // 2 + 6) for s in range(1, n_blades + 1)]
-        for (slots, _, _), result in zip(jobs, _solve_parallel(self.twin, jobs, self.workers), strict=True):
+        for (slots, _, _), result in zip(jobs, solve_parallel(self.twin, jobs, self.workers), strict=True):
             self.presolved[("d1b", tuple(slots))] = result
         self.per_slot("d1b", "d1b", "d1b", "joint", "joint", True, D1B_MODES)
 

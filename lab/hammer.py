@@ -423,12 +423,8 @@ def hammer_test(
     Gxx = np.zeros((n_in, grid.n_lines))
     doubles = np.zeros((n_in, n_avg), bool)
     for j, i in enumerate(inputs):
-        hits = draw_impacts(settings, rng, n_avg)
+        hits, force, F = _force_spectra(settings, rng, n_avg, win, grid, hold)
         doubles[j] = hits.double
-        force = impact_force(win["t_sim"], settings.contact_time_s, hits)
-        F = fft.rfft(force * win["force_sim"], axis=-1)[:, grid.lines] * (grid.dt_sim * hold)
-        F += _noise_spectra(rng, np.full(1, settings.force_noise * settings.peak_force_n), n_avg,
-                            win["force_an"], grid)[0]
         Gxx[j] = np.sum(np.abs(F) ** 2, axis=0)
         spectra, gram = _modal_spectra(filters, rigid, force, win["resp_sim"], grid)
         if rigid:
@@ -440,14 +436,42 @@ def hammer_test(
         C = phi[outputs] * phi[i][None, :]
         if rigid:
             C = np.hstack([C, modes.rigid_shapes[outputs] @ modes.rigid_shapes[i][:, None]])
-        for lo in range(0, n_out, OUTPUT_CHUNK):
-            c = C[lo : lo + OUTPUT_CHUNK]
-            Y = np.tensordot(c.astype(np.complex128), spectra, axes=(1, 0))  # (chunk, n_avg, n_lines)
-            rms = np.sqrt(np.maximum(np.einsum("oc,cd,od->o", c, gram, c), 0.0))
-            Y += _noise_spectra(rng, settings.response_noise * rms, n_avg, win["resp_an"], grid)
-            Gxy[lo : lo + OUTPUT_CHUNK, j] = np.einsum("af,oaf->of", np.conj(F), Y)
-            Gyy[lo : lo + OUTPUT_CHUNK, j] = np.sum(np.abs(Y) ** 2, axis=1)
+        Gxy[:, j], Gyy[:, j] = _output_spectra(C, spectra, gram, F, rng, settings.response_noise, win["resp_an"], grid)
     return _result(modes, setup, outputs, inputs, (Gxx, Gyy, Gxy), tau, doubles, n_avg)
+
+
+def _force_spectra(settings: HammerSettings, rng: np.random.Generator, n_avg: int, win: dict[str, np.ndarray],
+                   grid: AnalyserGrid, hold: np.ndarray):
+    """One reference's hits (module notes, steps 1 and 3): the impacts drawn, the force on the simulation grid,
+    shape (n_avg, n_sim), and the Fourier transforms of the windowed force channel with its noise, shape
+    (n_avg, n_lines); ``hold`` is the linear-interpolation kernel's transform at the lines."""
+    hits = draw_impacts(settings, rng, n_avg)
+    force = impact_force(win["t_sim"], settings.contact_time_s, hits)
+    F = fft.rfft(force * win["force_sim"], axis=-1)[:, grid.lines] * (grid.dt_sim * hold)
+    F += _noise_spectra(rng, np.full(1, settings.force_noise * settings.peak_force_n), n_avg,
+                        win["force_an"], grid)[0]
+    return hits, force, F
+
+
+def _output_spectra(C: np.ndarray, spectra: np.ndarray, gram: np.ndarray, F: np.ndarray, rng: np.random.Generator,
+                    noise: float, window: np.ndarray, grid: AnalyserGrid) -> tuple[np.ndarray, np.ndarray]:
+    """One reference's Gxy and Gyy at every output, shape (n_out, n_lines), summed over its hits.
+
+    Each output's spectrum is its modal participations ``C`` (n_out, n_cols) times the modal ``spectra`` of
+    :func:`_modal_spectra`, plus the laser's noise (``noise`` times the channel's RMS from ``gram``); outputs
+    are taken :data:`OUTPUT_CHUNK` at a time.
+    """
+    n_out, n_avg = C.shape[0], F.shape[0]
+    Gxy = np.zeros((n_out, grid.n_lines), np.complex128)
+    Gyy = np.zeros((n_out, grid.n_lines))
+    for lo in range(0, n_out, OUTPUT_CHUNK):
+        c = C[lo : lo + OUTPUT_CHUNK]
+        Y = np.tensordot(c.astype(np.complex128), spectra, axes=(1, 0))  # (chunk, n_avg, n_lines)
+        rms = np.sqrt(np.maximum(np.einsum("oc,cd,od->o", c, gram, c), 0.0))
+        Y += _noise_spectra(rng, noise * rms, n_avg, window, grid)
+        Gxy[lo : lo + OUTPUT_CHUNK] = np.einsum("af,oaf->of", np.conj(F), Y)
+        Gyy[lo : lo + OUTPUT_CHUNK] = np.sum(np.abs(Y) ** 2, axis=1)
+    return Gxy, Gyy
 
 
 def _result(modes: AssemblyModes, setup: RigSetup, outputs: list, inputs: list, spectra: tuple, tau: float,

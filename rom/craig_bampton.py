@@ -213,6 +213,76 @@ def craig_bampton(
     CraigBamptonModel
     """
     n = component.n_dof
+    b, R = _checked_boundary(n, boundary_dofs, n_modes, boundary_rotations)
+    is_b = np.zeros(n, bool)
+    is_b[b] = True
+    e = np.flatnonzero(~is_b)
+    out = np.zeros(0, np.int64) if output_dofs is None else np.asarray(output_dofs, dtype=np.int64).ravel()
+    pos_e = np.full(n, -1)
+    pos_e[e] = np.arange(e.size)
+    out_e = np.flatnonzero(pos_e[out] >= 0)  # output rows that are excess DOFs
+    Phi, Lambda, kappa, mu_be, mu_bb, Psi_out, Psi_kept = _factored_reduction(
+        component, e, b, int(n_modes), pos_e[out[out_e]], block_size, keep_basis, backend)
+    # Express the boundary coordinates in the given frames: x_phys = T x_b, T = blockdiag(R_j).
+    if R is not None:
+        kappa = _rotate(R, _rotate(R, kappa, True).T, True).T
+        mu_bb = _rotate(R, _rotate(R, mu_bb, True).T, True).T
+        mu_be = _rotate(R, mu_be, True)
+    return CraigBamptonModel(
+        Lambda=Lambda, kappa_bb=kappa, mu_be=mu_be, mu_bb=mu_bb, boundary_dofs=b, boundary_rotations=R,
+        output_dofs=out, output_basis=_output_basis(n, b, pos_e, out, out_e, Phi, Psi_out, R), n_dof=n,
+        Phi=Phi if keep_basis else None, Psi=None if Psi_kept is None else _rotate(R, Psi_kept.T, True).T,
+        excess_dofs=e if keep_basis else None, meta=dict(meta or {}),
+    )
+
+
+def _factored_reduction(component: Component, e: np.ndarray, b: np.ndarray, n_modes: int, out_rows: np.ndarray,
+                        block_size: int, keep_basis: bool, backend: str):
+    """Fixed-interface modes and the blocks of Eq. 6 on one factorization of K_ee, in the component frame.
+
+    One factorization of K_ee serves the fixed-interface modes (shift-invert at σ = 0: with the boundary clamped
+    K_ee is positive definite) and the constraint modes. Many right-hand sides: Pardiso's blocked solve wins even
+    below the size where SuperLU is the default.
+
+    Returns
+    -------
+    Phi, Lambda : ndarray, shapes (n_e, n_k), (n_k,)
+        Fixed-interface modes and their ω² (rad²/s²).
+    kappa, mu_be, mu_bb, Psi_out, Psi_kept
+        As :func:`_constraint_modes` gives them, κ_bb and μ_bb symmetrised.
+    """
+    K, M = component.K, component.M
+    Kee, Keb, Kbb = K[e][:, e].tocsr(), K[e][:, b].tocsr(), K[b][:, b].toarray()
+    Mee, Meb, Mbb = M[e][:, e].tocsr(), M[e][:, b].tocsr(), M[b][:, b].toarray()
+    multi = "pardiso" if backend == "auto" and b.size >= 64 and "pardiso" in available_backends() else backend
+    t0 = time.perf_counter()
+    fac = factorize(Kee, multi)
+    try:
+        # Fixed-interface normal modes Φ_ke (Eq. 3): boundary clamped, no rigid-body modes.
+        sol = solve_modes_factored(Kee, Mee, n_modes, fac)  # blocked Krylov on Pardiso
+        Phi = sol.shapes
+        Lambda = sol.omega2
+        log.info("craig_bampton: %d fixed-interface modes in %.1f s", n_modes, time.perf_counter() - t0)
+        t0 = time.perf_counter()
+        kappa, mu_be, mu_bb, Psi_out, Psi_kept = _constraint_modes(
+            fac, (Keb, Kbb), (Mee, Meb, Mbb), Phi, out_rows, block_size, keep_basis)
+    finally:
+        fac.free()
+    kappa = 0.5 * (kappa + kappa.T)
+    mu_bb = 0.5 * (mu_bb + mu_bb.T)
+    log.info("craig_bampton: n_e=%d, n_b=%d, n_k=%d (%.1f–%.1f Hz); constraint modes and Eq. 6 blocks in %.1f s",
+             e.size, b.size, n_modes, sol.frequencies_hz[0], sol.frequencies_hz[-1], time.perf_counter() - t0)
+    return Phi, Lambda, kappa, mu_be, mu_bb, Psi_out, Psi_kept
+
+
+def _checked_boundary(n: int, boundary_dofs, n_modes, boundary_rotations) -> tuple[np.ndarray, np.ndarray | None]:
+    """The boundary DOFs as int64 and their frames as float64, checked against a component of ``n`` DOFs.
+
+    Raises
+    ------
+    ValueError
+        Naming the bad boundary DOFs, mode count or frame shape.
+    """
     b = np.asarray(boundary_dofs, dtype=np.int64).ravel()
     if b.size == 0:
         raise ValueError("boundary_dofs must not be empty")
@@ -226,68 +296,63 @@ def craig_bampton(
         boundary_rotations = np.asarray(boundary_rotations, dtype=np.float64)
         if boundary_rotations.shape != (b.size // 3, 3, 3) or b.size % 3:
             raise ValueError(f"boundary_rotations must have shape ({b.size // 3}, 3, 3) for {b.size} boundary DOFs")
-    is_b = np.zeros(n, bool)
-    is_b[b] = True
-    e = np.flatnonzero(~is_b)
-    K, M = component.K, component.M
-    Kee, Keb, Kbb = K[e][:, e].tocsr(), K[e][:, b].tocsr(), K[b][:, b].toarray()
-    Mee, Meb, Mbb = M[e][:, e].tocsr(), M[e][:, b].tocsr(), M[b][:, b].toarray()
+    return b, boundary_rotations
 
-    # One factorization of K_ee serves the fixed-interface modes (shift-invert at σ = 0: with the boundary
-    # clamped K_ee is positive definite) and the constraint modes. Many right-hand sides: Pardiso's blocked
-    # solve wins even below the size where SuperLU is the default.
-    multi = "pardiso" if backend == "auto" and b.size >= 64 and "pardiso" in available_backends() else backend
-    t0 = time.perf_counter()
-    fac = factorize(Kee, multi)
-    try:
-        # Fixed-interface normal modes Φ_ke (Eq. 3): boundary clamped, no rigid-body modes.
-        sol = solve_modes_factored(Kee, Mee, int(n_modes), fac)  # blocked Krylov on Pardiso
-        Phi = sol.shapes
-        Lambda = sol.omega2
-        log.info("craig_bampton: %d fixed-interface modes in %.1f s", n_modes, time.perf_counter() - t0)
-        t0 = time.perf_counter()
-        # Constraint modes Ψ_be = −K_ee⁻¹ K_eb (Eq. 3) and the blocks of Eq. 6, one block of boundary DOFs at
-        # a time: κ_bb = K_bb + K_be Ψ, μ_be = Ψᵀ M_ee Φ + M_be Φ (stored n_b × n_k), and
-        # μ_bb = Ψᵀ W + M_be Ψ + M_bb with W = M_ee Ψ + M_eb. Since Ψᵀ = −K_be K_ee⁻¹, the product Ψᵀ W_j is
-        # −K_be (K_ee⁻¹ W_j): a second block solve and a sparse product instead of the dense Ψᵀ W_j over all of
-        # Ψ. So Ψ (171 k × 1 302 doubles, 1.8 GB for a default slot) is never held whole unless it is kept,
-        # and the 0.6 TFlop product disappears.
-        kappa = np.empty((b.size, b.size))
-        mu_be = np.empty((b.size, Phi.shape[1]))
-        mu_bb = np.empty((b.size, b.size))
-        out = np.zeros(0, np.int64) if output_dofs is None else np.asarray(output_dofs, dtype=np.int64).ravel()
-        pos_e = np.full(n, -1)
-        pos_e[e] = np.arange(e.size)
-        out_e = np.flatnonzero(pos_e[out] >= 0)  # output rows that are excess DOFs
-        Psi_out = np.empty((out_e.size, b.size))
-        Psi_kept = np.empty((e.size, b.size)) if keep_basis else None
-        Kbe = Keb.T.tocsr()
-        for j0 in range(0, b.size, block_size):
-            j1 = min(j0 + block_size, b.size)
-            Psi_j = -np.asarray(fac.solve(Keb[:, j0:j1].toarray())).reshape(e.size, j1 - j0)
-            W = Mee @ Psi_j + Meb[:, j0:j1]  # (n_e, bs)
-            Y = np.asarray(fac.solve(W)).reshape(e.size, j1 - j0)
-            kappa[:, j0:j1] = Kbb[:, j0:j1] + Kbe @ Psi_j
-            mu_be[j0:j1] = W.T @ Phi
-            mu_bb[:, j0:j1] = -(Kbe @ Y) + Meb.T @ Psi_j + Mbb[:, j0:j1]
-            Psi_out[:, j0:j1] = Psi_j[pos_e[out[out_e]]]
-            if Psi_kept is not None:
-                Psi_kept[:, j0:j1] = Psi_j
-    finally:
-        fac.free()
-    kappa = 0.5 * (kappa + kappa.T)
-    mu_bb = 0.5 * (mu_bb + mu_bb.T)
-    log.info("craig_bampton: n_e=%d, n_b=%d, n_k=%d (%.1f–%.1f Hz); constraint modes and Eq. 6 blocks in %.1f s",
-             e.size, b.size, n_modes, sol.frequencies_hz[0], sol.frequencies_hz[-1], time.perf_counter() - t0)
 
-    # Express the boundary coordinates in the given frames: x_phys = T x_b, T = blockdiag(R_j).
-    R = boundary_rotations
-    if R is not None:
-        kappa = _rotate(R, _rotate(R, kappa, True).T, True).T
-        mu_bb = _rotate(R, _rotate(R, mu_bb, True).T, True).T
-        mu_be = _rotate(R, mu_be, True)
+def _constraint_modes(fac, Kb: tuple, Mb: tuple, Phi: np.ndarray, out_rows: np.ndarray, block_size: int,
+                     keep_basis: bool):
+    """Constraint modes Ψ = −K_ee⁻¹ K_eb (Eq. 3) and the blocks of Eq. 6, one block of boundary DOFs at a time.
 
-    # Output rows of R_CB (Eq. 3), with the boundary columns in the boundary frames.
+    κ_bb = K_bb + K_be Ψ, μ_be = Ψᵀ M_ee Φ + M_be Φ (stored n_b × n_k), and μ_bb = Ψᵀ W + M_be Ψ + M_bb with
+    W = M_ee Ψ + M_eb. Since Ψᵀ = −K_be K_ee⁻¹, the product Ψᵀ W_j is −K_be (K_ee⁻¹ W_j): a second block solve
+    and a sparse product instead of the dense Ψᵀ W_j over all of Ψ. So Ψ (171 k × 1 302 doubles, 1.8 GB for a
+    default slot) is never held whole unless it is kept, and the 0.6 TFlop product disappears.
+
+    Parameters
+    ----------
+    fac : object with ``solve(b)``
+        The factorization of K_ee.
+    Kb, Mb : tuple
+        (K_eb, K_bb) and (M_ee, M_eb, M_bb).
+    Phi : ndarray, shape (n_e, n_k)
+    out_rows : ndarray of int, shape (n_out_e,)
+        Excess-DOF positions of the output DOFs that are excess DOFs.
+
+    Returns
+    -------
+    kappa, mu_be, mu_bb : ndarray, shapes (n_b, n_b), (n_b, n_k), (n_b, n_b)
+        Before symmetrisation, in the component frame.
+    Psi_out : ndarray, shape (n_out_e, n_b)
+        Rows of Ψ at ``out_rows``.
+    Psi_kept : ndarray, shape (n_e, n_b), or None
+        Ψ whole with ``keep_basis``.
+    """
+    Keb, Kbb = Kb
+    Mee, Meb, Mbb = Mb
+    n_e, n_b = Keb.shape
+    kappa = np.empty((n_b, n_b))
+    mu_be = np.empty((n_b, Phi.shape[1]))
+    mu_bb = np.empty((n_b, n_b))
+    Psi_out = np.empty((out_rows.size, n_b))
+    Psi_kept = np.empty((n_e, n_b)) if keep_basis else None
+    Kbe = Keb.T.tocsr()
+    for j0 in range(0, n_b, block_size):
+        j1 = min(j0 + block_size, n_b)
+        Psi_j = -np.asarray(fac.solve(Keb[:, j0:j1].toarray())).reshape(n_e, j1 - j0)
+        W = Mee @ Psi_j + Meb[:, j0:j1]  # (n_e, bs)
+        Y = np.asarray(fac.solve(W)).reshape(n_e, j1 - j0)
+        kappa[:, j0:j1] = Kbb[:, j0:j1] + Kbe @ Psi_j
+        mu_be[j0:j1] = W.T @ Phi
+        mu_bb[:, j0:j1] = -(Kbe @ Y) + Meb.T @ Psi_j + Mbb[:, j0:j1]
+        Psi_out[:, j0:j1] = Psi_j[out_rows]
+        if Psi_kept is not None:
+            Psi_kept[:, j0:j1] = Psi_j
+    return kappa, mu_be, mu_bb, Psi_out, Psi_kept
+
+
+def _output_basis(n: int, b: np.ndarray, pos_e: np.ndarray, out: np.ndarray, out_e: np.ndarray, Phi: np.ndarray,
+                  Psi_out: np.ndarray, R: np.ndarray | None) -> np.ndarray:
+    """Output rows of R_CB (Eq. 3), shape (n_out, n_k + n_b), with the boundary columns in the boundary frames."""
     pos_b = np.full(n, -1)
     pos_b[b] = np.arange(b.size)
     basis_out = np.zeros((out.size, Phi.shape[1] + b.size))
@@ -297,21 +362,7 @@ def craig_bampton(
         unit = np.zeros(b.size)
         unit[pos_b[out[r]]] = 1.0
         basis_out[r, Phi.shape[1] :] = _rotate(R, unit[:, None], True)[:, 0]
-    return CraigBamptonModel(
-        Lambda=Lambda,
-        kappa_bb=kappa,
-        mu_be=mu_be,
-        mu_bb=mu_bb,
-        boundary_dofs=b,
-        boundary_rotations=R,
-        output_dofs=out,
-        output_basis=basis_out,
-        n_dof=n,
-        Phi=Phi if keep_basis else None,
-        Psi=None if Psi_kept is None else _rotate(R, Psi_kept.T, True).T,
-        excess_dofs=e if keep_basis else None,
-        meta=dict(meta or {}),
-    )
+    return basis_out
 
 
 def disk_boundary_dofs(bd, slots: Sequence[int]) -> tuple[np.ndarray, np.ndarray]:

@@ -45,13 +45,13 @@ import scipy.linalg as sla
 from .academic import BladedDisk
 from .contact import ContactPattern
 from .craig_bampton import disk_boundary_dofs
-from .cyclic_sector import reduce_sectors, sector_blocks
+from .cyclic_partition import sector_blocks
+from .cyclic_ritz import RitzSlot, append_local, global_cc, local_modes, new_local, outputs, residual_rows, ritz
+from .cyclic_sector import reduce_sectors
 from .errors import ROMError
 from .fe_assembly import AssemblyModes
-from .modal import dense_modes
 from .rom_assembly import (
     DEFAULT_FORMULATION,
-    blade_part,
     check_pattern,
     every_slot,
     grid_shape,
@@ -85,8 +85,6 @@ DEFAULT_N_LOCAL_MODES = 6
 DEFAULT_ROUNDS = 1
 #: A slot's corrections keep the directions above this fraction of their largest singular value.
 _ENRICH_TOL = 1e-3
-#: Local subspace iterations for the starting local modes.
-_LOCAL_ITERATIONS = 4
 
 
 @dataclass(frozen=True, eq=False)
@@ -239,116 +237,6 @@ class CyclicSolution:
     n_ritz: int
 
 
-class _Slot:
-    """One slot with its blade in local coordinates [x (n_i, slot frame), the blade's own coordinates]."""
-
-    def __init__(self, disk: CyclicDiskModel, blade: RubinModel, pattern: ContactPattern, delta, formulation: str,
-                 slot: int):
-        se, iface_pos, contact = blade_part(blade, pattern, delta, formulation)
-        n_i = disk.n_i
-        nm = se.n_modal
-        n_free = int((~contact).sum())
-        self.n = n_i + nm + n_free
-        idx = np.empty(se.n, np.int64)
-        idx[:nm] = n_i + np.arange(nm)
-        bidx = idx[nm:]
-        bidx[contact] = iface_pos[contact]
-        bidx[~contact] = n_i + nm + np.arange(n_free)
-        self.Kb = np.zeros((self.n, self.n))
-        self.Mb = np.zeros((self.n, self.n))
-        self.Kb[np.ix_(idx, idx)] = se.K
-        self.Mb[np.ix_(idx, idx)] = se.M
-        self.acc = bidx[iface_pos < 0]
-        K = self.Kb.copy()
-        K[:n_i, :n_i] += disk.kappa_col[0]
-        self.M = self.Mb.copy()
-        self.M[:n_i, :n_i] += disk.mu_col[0]
-        # The slot held by the others is positive definite: one Cholesky factor serves the local modes and
-        # every block-Jacobi correction. ContactPattern already refuses patterns that leave the blade a
-        # mechanism; a nearly collinear one can still fail numerically.
-        try:
-            self.K_chol = sla.cho_factor(K, check_finite=False)
-            self.own_chol = sla.cho_factor(self.Kb[n_i:, n_i:], check_finite=False)
-        except np.linalg.LinAlgError:
-            raise ROMError(f"slot {slot}: its contact pattern ({int(contact.sum()) // 3} contacting nodes) does not "
-                           "hold the blade firmly enough; solve this assembly with the sparse hybrid "
-                           "(rom.rom_assembly.solve_full)") from None
-        self.L = np.zeros((self.n, 0))  # orthonormal local basis
-        self.CL = np.zeros((disk.n_slots, n_i, 0))  # κ_bb[t, s] X_s for every slot t
-        self.DL = np.zeros((disk.n_slots, n_i, 0))  # μ_bb[t, s] X_s
-
-
-def _local_modes(slot: _Slot, n_modes: int, seed: int) -> np.ndarray:
-    """Approximate lowest local modes: subspace iteration on the slot's Cholesky factor (a start, not a result)."""
-    X = np.random.default_rng(seed).standard_normal((slot.n, 2 * n_modes))
-    for _ in range(_LOCAL_ITERATIONS):
-        X = sla.cho_solve(slot.K_chol, slot.M @ X, check_finite=False)
-        X, _ = np.linalg.qr(X)
-    return X
-
-
-def _new_local(slot: _Slot, W: np.ndarray, tol: float) -> np.ndarray:
-    """The dominant directions of ``W`` (local coordinates) not yet in the slot's basis, orthonormal."""
-    if slot.L.shape[1]:
-        for _ in range(2):  # CGS2 against the basis already there
-            W = W - slot.L @ (slot.L.T @ W)
-    nrm = np.linalg.norm(W, axis=0)
-    W = W[:, nrm > 0] / nrm[nrm > 0]
-    if W.shape[1] == 0:
-        return W
-    u, sv, _ = np.linalg.svd(W, full_matrices=False)
-    u = u[:, sv > tol * sv[0]]
-    if slot.L.shape[1]:
-        u = u - slot.L @ (slot.L.T @ u)
-        u, _ = np.linalg.qr(u)
-    return u
-
-
-def _append_local(disk: CyclicDiskModel, slots: list[_Slot], new: list[np.ndarray]) -> None:
-    """Append new local columns to every slot's basis, with their products with the circulant blocks.
-
-    κ_bb[t, s] = C_((t − s) mod N): one product of the stacked first block column (N · n_i × n_i) with every
-    slot's new columns side by side reads the blocks once (the products are memory-bound one slot at a time).
-    """
-    N, n_i = disk.n_slots, disk.n_i
-    X = np.hstack([u[:n_i] for u in new])
-    CX = (disk.kappa_col.reshape(N * n_i, n_i) @ X).reshape(N, n_i, -1)
-    DX = (disk.mu_col.reshape(N * n_i, n_i) @ X).reshape(N, n_i, -1)
-    c0 = 0
-    for s, (sl, u) in enumerate(zip(slots, new, strict=True)):
-        cs = slice(c0, c0 + u.shape[1])
-        c0 += u.shape[1]
-        order = (np.arange(N) - s) % N
-        sl.L = np.hstack([sl.L, u])
-        sl.CL = np.concatenate([sl.CL, CX[order][:, :, cs]], axis=2)
-        sl.DL = np.concatenate([sl.DL, DX[order][:, :, cs]], axis=2)
-
-
-def _global_cc(disk: CyclicDiskModel, n_cc: int):
-    """Real global CC vectors at the slots and their products with the circulant K and M blocks.
-
-    Returns
-    -------
-    G, CG, DG : ndarray, shape (N, n_i, n_g)
-    """
-    N = disk.n_slots
-    ph = np.exp(2j * np.pi * np.outer(np.arange(N), np.arange(disk.cc_modes.shape[0])) / N)  # (N, H)
-    G, CG, DG = [], [], []
-    for h in range(disk.cc_modes.shape[0]):
-        psi = disk.cc_modes[h][:, :n_cc]
-        dpsi = disk.cc_mass[h][:, :n_cc]
-        w2 = disk.cc_omega2[h][:n_cc]
-        # A harmonic vector x_s = ψ e^(2πi h s / N) has (C x)_s = e^(2πi h s / N) Ĉ_h ψ = ω² (D x)_s.
-        x = ph[:, h, None, None] * psi[None]
-        dx = ph[:, h, None, None] * dpsi[None]
-        parts = [np.real] if h == 0 or 2 * h == N else [np.real, np.imag]
-        for part in parts:
-            G.append(part(x))
-            DG.append(part(dx))
-            CG.append(part(dx) * w2)
-    return np.concatenate(G, axis=2), np.concatenate(CG, axis=2), np.concatenate(DG, axis=2)
-
-
 def solve_full_cyclic(
     disk: CyclicDiskModel,
     blade: RubinModel,
@@ -389,141 +277,24 @@ def solve_full_cyclic(
     dl = slot_deltas(deltas, N, blade.m)
     n_modes = 3 * N if n_modes is None else int(n_modes)
     n_cc = disk.cc_modes.shape[2] if n_cc is None else int(n_cc)
-    slots = [_Slot(disk, blade, check_pattern(patterns[s], grid, s), dl.get(s), formulation, s)
+    slots = [RitzSlot(disk, blade, check_pattern(patterns[s], grid, s), dl.get(s), formulation, s)
              for s in range(1, N + 1)]
-    _append_local(disk, slots, [_new_local(sl, _local_modes(sl, n_local_modes, k), 0.0) for k, sl in enumerate(slots)])
-    G0, CG0, DG0 = _global_cc(disk, n_cc)
+    append_local(disk, slots, [new_local(sl, local_modes(sl, n_local_modes, k), 0.0) for k, sl in enumerate(slots)])
+    G0, CG0, DG0 = global_cc(disk, n_cc)
     # Each blade follows the global shapes statically: own = −K_oo⁻¹ K_ox x (no energy for rigid motion).
     G0own = [-sla.cho_solve(sl.own_chol, sl.Kb[n_i:, :n_i] @ G0[k], check_finite=False) for k, sl in enumerate(slots)]
     t1 = time.perf_counter()
     for rnd in range(rounds + 1):
-        lam, Y, parts = _ritz(disk, slots, G0, CG0, DG0, G0own, n_modes)
-        R, KVn, MVn = _residual_rows(disk, slots, parts, Y, lam)
+        lam, Y, parts = ritz(disk, slots, G0, CG0, DG0, G0own, n_modes)
+        R, KVn, MVn = residual_rows(disk, slots, parts, Y, lam)
         res = np.linalg.norm(np.concatenate(R, axis=0), axis=0) / (KVn + lam * MVn)
         log.info("cyclic full solve: round %d, Ritz space %d, max relative residual %.1e", rnd, Y.shape[0], res.max())
         if rnd == rounds:
             break
-        _append_local(disk, slots, [_new_local(sl, sla.cho_solve(sl.K_chol, R[1 + k], check_finite=False), _ENRICH_TOL)
+        append_local(disk, slots, [new_local(sl, sla.cho_solve(sl.K_chol, R[1 + k], check_finite=False), _ENRICH_TOL)
                                     for k, sl in enumerate(slots)])
     f_hz = np.sqrt(np.clip(lam, 0.0, None)) / (2 * np.pi)
-    meas = _outputs(disk, slots, parts, Y)
+    meas = outputs(disk, slots, parts, Y)
     labels = measurement_labels(N, range(1, N + 1), blade.n_b - blade.n_interface)
     log.info("cyclic full solve: start %.1f s, Ritz rounds %.1f s", t1 - t0, time.perf_counter() - t1)
     return CyclicSolution(AssemblyModes(f_hz, meas, labels), res, int(Y.shape[0]))
-
-
-def _ritz(disk, slots, G0, CG0, DG0, G0own, n_modes):
-    """Rayleigh–Ritz on [η, every slot's local basis, the global CC vectors made orthogonal to them]."""
-    N, n_i, n_k = disk.n_slots, disk.n_i, disk.n_k
-    # Global vectors minus their local components (span kept, now orthogonal to every local basis).
-    coef = [sl.L.T @ np.vstack([G0[k], G0own[k]]) for k, sl in enumerate(slots)]
-    Gx = G0.copy()
-    Gown = [g.copy() for g in G0own]
-    CG, DG = CG0.copy(), DG0.copy()
-    for k, sl in enumerate(slots):
-        loc = sl.L @ coef[k]
-        Gx[k] -= loc[:n_i]
-        Gown[k] -= loc[n_i:]
-        CG -= sl.CL @ coef[k]
-        DG -= sl.DL @ coef[k]
-    # Orthonormalise what is left (directions already in the local spaces drop out).
-    flat = np.vstack([Gx.reshape(N * n_i, -1)] + Gown)
-    u, sv, vt = np.linalg.svd(flat, full_matrices=False)
-    keep = sv > 1e-6 * sv[0]  # what is left of a dropped direction is within 1e-6 of the local spaces
-    T = vt[keep].T / sv[keep]  # Gflat @ T = u[:, keep]
-    Gx, CG, DG = Gx @ T, CG @ T, DG @ T
-    Gown = [g @ T for g in Gown]
-    Gflat = Gx.reshape(N * n_i, -1)
-    mu_be_flat = disk.mu_be.reshape(N * n_i, n_k)
-    n_g = T.shape[1]
-    sizes = [n_k] + [sl.L.shape[1] for sl in slots] + [n_g]
-    off = np.concatenate([[0], np.cumsum(sizes)])
-    n_red = int(off[-1])
-    Kr = np.zeros((n_red, n_red))
-    Mr = np.zeros((n_red, n_red))
-    Kr[np.arange(n_k), np.arange(n_k)] = disk.Lambda
-    Mr[np.arange(n_k), np.arange(n_k)] = 1.0
-    gsl = slice(off[-2], off[-1])
-    # Global–global: disk blocks, then each blade on its slot.
-    Kr[gsl, gsl] = Gflat.T @ CG.reshape(N * n_i, -1)
-    Mr[gsl, gsl] = Gflat.T @ DG.reshape(N * n_i, -1)
-    Mr[:n_k, gsl] = mu_be_flat.T @ Gflat
-    for k, sl in enumerate(slots):
-        ls = slice(off[1 + k], off[2 + k])
-        X = sl.L[:n_i]
-        gl = np.vstack([Gx[k], Gown[k]])
-        Kr[gsl, gsl] += gl.T @ sl.Kb @ gl
-        Mr[gsl, gsl] += gl.T @ sl.Mb @ gl
-        # η–local: mass coupling only (K_ηb = 0 in a CB model).
-        Mr[:n_k, ls] = disk.mu_be[k].T @ X
-        # local–local, every slot pair: X_tᵀ κ_bb[t, s] X_s.
-        for j, sj in enumerate(slots):
-            lj = slice(off[1 + j], off[2 + j])
-            Xj = sj.L[:n_i]
-            Kr[lj, ls] = Xj.T @ sl.CL[j]
-            Mr[lj, ls] = Xj.T @ sl.DL[j]
-        Kr[ls, ls] += sl.L.T @ sl.Kb @ sl.L
-        Mr[ls, ls] += sl.L.T @ sl.Mb @ sl.L
-        # global–local: Gᵀ K L_s = Σ_t G_tᵀ κ_bb[t, s] X_s + (slot s's blade).
-        Kr[gsl, ls] = Gflat.T @ sl.CL.reshape(N * n_i, -1) + gl.T @ sl.Kb @ sl.L
-        Mr[gsl, ls] = Gflat.T @ sl.DL.reshape(N * n_i, -1) + gl.T @ sl.Mb @ sl.L
-    # Mirror the blocks filled on one side only, then even out round-off.
-    Mr[gsl, :n_k] = Mr[:n_k, gsl].T
-    Mr[n_k : off[-2], :n_k] = Mr[:n_k, n_k : off[-2]].T
-    Kr[n_k : off[-2], gsl] = Kr[gsl, n_k : off[-2]].T
-    Mr[n_k : off[-2], gsl] = Mr[gsl, n_k : off[-2]].T
-    Kr = 0.5 * (Kr + Kr.T)
-    Mr = 0.5 * (Mr + Mr.T)
-    dm = dense_modes(Kr, Mr, n_modes)
-    lam = (2 * np.pi * dm.frequencies_hz) ** 2
-    parts = {"off": off, "Gx": Gx, "Gown": Gown, "CG": CG, "DG": DG}
-    return lam, dm.shapes, parts
-
-
-def _residual_rows(disk, slots, parts, Y, lam):
-    """Residuals K v − λ M v of the Ritz vectors, by row group: [η, slot 1 local, …, slot N local].
-
-    Also returns ‖K v‖ and ‖M v‖ over all rows.
-    """
-    N, n_i, n_k = disk.n_slots, disk.n_i, disk.n_k
-    off, Gx, Gown, CG, DG = parts["off"], parts["Gx"], parts["Gown"], parts["CG"], parts["DG"]
-    Yg = Y[off[-2] : off[-1]]
-    Ye = Y[:n_k]
-    # x rows of every slot: disk blocks on the global and local parts, μ_be on η.
-    KX = CG @ Yg
-    MX = DG @ Yg + disk.mu_be @ Ye
-    Mη = Ye + disk.mu_be.reshape(N * n_i, n_k).T @ (Gx @ Yg).reshape(N * n_i, -1)
-    for k, sl in enumerate(slots):
-        Yl = Y[off[1 + k] : off[2 + k]]
-        KX += sl.CL @ Yl
-        MX += sl.DL @ Yl
-        Mη += disk.mu_be[k].T @ (sl.L[:n_i] @ Yl)
-    Kη = disk.Lambda[:, None] * Ye
-    R = [Kη - Mη * lam]
-    kn2 = np.sum(Kη**2, axis=0)
-    mn2 = np.sum(Mη**2, axis=0)
-    for k, sl in enumerate(slots):
-        Yl = Y[off[1 + k] : off[2 + k]]
-        v = sl.L @ Yl + np.vstack([Gx[k], Gown[k]]) @ Yg  # local coordinates of the Ritz vectors
-        Kv = sl.Kb @ v
-        Mv = sl.Mb @ v
-        Kv[:n_i] += KX[k]
-        Mv[:n_i] += MX[k]
-        R.append(Kv - Mv * lam)
-        kn2 += np.sum(Kv**2, axis=0)
-        mn2 += np.sum(Mv**2, axis=0)
-    return R, np.sqrt(kn2), np.sqrt(mn2)
-
-
-def _outputs(disk, slots, parts, Y):
-    """Disk measurement DOFs (one per sector) then each blade's accessory DOFs, shape (n_meas, n_modes)."""
-    n_i, n_k = disk.n_i, disk.n_k
-    off, Gx, Gown = parts["off"], parts["Gx"], parts["Gown"]
-    Yg = Y[off[-2] : off[-1]]
-    meas_disk = disk.out_eta @ Y[:n_k]
-    rows = []
-    for k, sl in enumerate(slots):
-        v = sl.L @ Y[off[1 + k] : off[2 + k]] + np.vstack([Gx[k], Gown[k]]) @ Yg
-        meas_disk += np.roll(disk.out_b1, k, axis=0) @ v[:n_i]
-        rows.append(v[sl.acc])
-    return np.vstack([meas_disk] + rows)

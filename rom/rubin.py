@@ -346,23 +346,7 @@ def rubin(
     if Phi_r.shape[1] == 0:
         raise ValueError("rubin() expects a free–free component with rigid-body modes; none were found")
 
-    # Inertia-relief elastic flexibility at the boundary: X = G_c P A ᵀ on a determinate support.
-    sup = _support_dofs(Phi_r)
-    free = np.setdiff1d(np.arange(n), sup)
-    F = -(M @ Phi_r) @ Phi_r[b].T  # P Aᵀ = Aᵀ − M Φ_r Φ_r|bᵀ, shape (n, n_b)
-    F[b, np.arange(b.size)] += 1.0
-    # Many right-hand sides: Pardiso's blocked solve beats SuperLU's column-by-column one even on small models
-    # (default blade, 1 305 columns: 8.7 s vs 22.9 s measured).
-    multi = "pardiso" if backend == "auto" and b.size >= 64 and "pardiso" in available_backends() else backend
-    fac = factorize(K[free][:, free].tocsr(), multi)
-    try:
-        X = np.zeros((n, b.size))
-        X[free] = np.asarray(fac.solve(F[free])).reshape(free.size, b.size)
-    finally:
-        fac.free()
-    X -= Phi_r @ (Phi_r.T @ (M @ X))  # Pᵀ X: remove the rigid-body component (M-orthogonal projection)
-    # Residual attachment modes: subtract the retained elastic modes' flexibility Σ φ φᵀ / ω².
-    Psi_r = X - Phi_f @ (Phi_f[b].T / w2[:, None])
+    Psi_r = _residual_attachment_modes(K, M, Phi_r, Phi_f, w2, b, backend)
     G_bb = Psi_r[b]
     G_bb = 0.5 * (G_bb + G_bb.T)
     G_rb = Psi_r.T @ (K @ Psi_r)
@@ -385,6 +369,29 @@ def rubin(
         Psi_r=Psi_r if keep_basis else None,
         meta=dict(meta or {}),
     )
+
+
+def _residual_attachment_modes(K, M, Phi_r: np.ndarray, Phi_f: np.ndarray, w2: np.ndarray, b: np.ndarray,
+                               backend: str) -> np.ndarray:
+    """Residual attachment modes Ψ_r = (Pᵀ G_c P − Φ_f Ω_f⁻² Φ_fᵀ) Aᵀ (Eq. 7), shape (n, n_b) (module notes)."""
+    n = K.shape[0]
+    # Inertia-relief elastic flexibility at the boundary: X = G_c P A ᵀ on a determinate support.
+    sup = _support_dofs(Phi_r)
+    free = np.setdiff1d(np.arange(n), sup)
+    F = -(M @ Phi_r) @ Phi_r[b].T  # P Aᵀ = Aᵀ − M Φ_r Φ_r|bᵀ, shape (n, n_b)
+    F[b, np.arange(b.size)] += 1.0
+    # Many right-hand sides: Pardiso's blocked solve beats SuperLU's column-by-column one even on small models
+    # (default blade, 1 305 columns: 8.7 s vs 22.9 s measured).
+    multi = "pardiso" if backend == "auto" and b.size >= 64 and "pardiso" in available_backends() else backend
+    fac = factorize(K[free][:, free].tocsr(), multi)
+    try:
+        X = np.zeros((n, b.size))
+        X[free] = np.asarray(fac.solve(F[free])).reshape(free.size, b.size)
+    finally:
+        fac.free()
+    X -= Phi_r @ (Phi_r.T @ (M @ X))  # Pᵀ X: remove the rigid-body component (M-orthogonal projection)
+    # Residual attachment modes: subtract the retained elastic modes' flexibility Σ φ φᵀ / ω².
+    return X - Phi_f @ (Phi_f[b].T / w2[:, None])
 
 
 def blade_boundary_dofs(blade: Component) -> tuple[np.ndarray, int]:

@@ -113,29 +113,8 @@ def read_ansys_full(
         raise ModelImportError(f"{path}: not a readable ANSYS file ({why})") from None
     if not hasattr(full, "load_km"):
         raise ModelImportError(f"{path}: this is an ANSYS {type(full).__name__}, not a .full matrix file")
-    header = getattr(full, "_header", {})
-    # The reader's compiled code reads past the end of a truncated file (it crashed the interpreter in a
-    # test): check that every block the header points to (4-byte words) lies inside the file first.
-    size = path.stat().st_size
-    ends = {k: 4 * int(header[k]) for k in ("ptrEND", "ptrSTF", "ptrMAS", "ptrDOF") if header.get(k)}
-    if not ends or max(ends.values()) > size:
-        far = max(ends, key=ends.get) if ends else "ptrEND"
-        raise ModelImportError(f"{path}: truncated or damaged: the header's {far} points to byte {ends.get(far, '?')}, "
-                               f"the file has {size} bytes")
-    numdof = int(header.get("numdof", 3))
-    if numdof != 3:
-        raise ModelImportError(f"{path}: the model has {numdof} DOFs per node; only 3-D solids with UX, UY, UZ are "
-                               "supported")
-    try:
-        dof_ref, k, m = full.load_km(as_sparse=True, sort=False)
-    except Exception as exc:  # same: a truncated file fails inside the compiled reader
-        why = " ".join(str(exc).split()) or type(exc).__name__
-        raise ModelImportError(f"{path}: could not read K and M ({why})") from None
-    if k is None or m is None:
-        raise ModelImportError(f"{path}: the file holds no {'stiffness' if k is None else 'mass'} matrix")
-    dof_ref = np.asarray(dof_ref, dtype=np.int64)
-    if dof_ref.ndim != 2 or dof_ref.shape[0] != k.shape[0] or (dof_ref[:, 1] > 2).any() or (dof_ref[:, 1] < 0).any():
-        raise ModelImportError(f"{path}: unexpected DOF reference (shape {dof_ref.shape}); only UX, UY, UZ supported")
+    _check_header(path, getattr(full, "_header", {}))
+    dof_ref, k, m = _load_km(path, full)
     layout = dof_layout(dof_ref[:, 0], dof_ref[:, 1] + 1, str(path))
     K, k_storage = matrix_to_csr(k, layout.n_dof, index=layout.index, where=str(path), label="K")
     del k
@@ -146,18 +125,55 @@ def read_ansys_full(
     if archive is not None:
         ids, xyz, sets = read_ansys_archive(archive)
         coords = (ids, xyz)
-        # Components may name nodes of other parts of the archive: keep only those fully in this model.
-        keep = {}
-        for key, nodes in sets.items():
-            inside = np.isin(nodes, layout.node_ids)
-            if inside.all():
-                keep[key] = nodes
-            else:
-                log.info("%s: node component %r names %d node(s) outside the .full model; left out", archive, key,
-                         int((~inside).sum()))
-        sets = keep
+        sets = _sets_inside(archive, sets, layout.node_ids)
     n_const = int(len(full.const)) if getattr(full, "const", None) is not None else 0
     meta = {"format": "full", "storage": f"K {k_storage}, M {m_storage}", "archive": str(archive) if archive else None,
             "ansys_constrained_dofs": n_const}
     return finish_component(name or path.stem, K, M, layout.node_ids, coords=coords, node_sets=sets, units=system,
                             source=str(path), meta=meta)
+
+
+def _check_header(path: Path, header: dict) -> None:
+    """Refuse a ``.full`` file whose header points past its end, or whose nodes do not carry UX, UY, UZ.
+
+    The reader's compiled code reads past the end of a truncated file (it crashed the interpreter in a test):
+    every block the header points to (4-byte words) must lie inside the file first.
+    """
+    size = path.stat().st_size
+    ends = {k: 4 * int(header[k]) for k in ("ptrEND", "ptrSTF", "ptrMAS", "ptrDOF") if header.get(k)}
+    if not ends or max(ends.values()) > size:
+        far = max(ends, key=ends.get) if ends else "ptrEND"
+        raise ModelImportError(f"{path}: truncated or damaged: the header's {far} points to byte {ends.get(far, '?')}, "
+                               f"the file has {size} bytes")
+    numdof = int(header.get("numdof", 3))
+    if numdof != 3:
+        raise ModelImportError(f"{path}: the model has {numdof} DOFs per node; only 3-D solids with UX, UY, UZ are "
+                               "supported")
+
+
+def _load_km(path: Path, full):
+    """The DOF reference (node, 0-based direction) of shape (n, 2) and the reader's K and M, checked."""
+    try:
+        dof_ref, k, m = full.load_km(as_sparse=True, sort=False)
+    except Exception as exc:  # a truncated file fails inside the compiled reader, with assorted types
+        why = " ".join(str(exc).split()) or type(exc).__name__
+        raise ModelImportError(f"{path}: could not read K and M ({why})") from None
+    if k is None or m is None:
+        raise ModelImportError(f"{path}: the file holds no {'stiffness' if k is None else 'mass'} matrix")
+    dof_ref = np.asarray(dof_ref, dtype=np.int64)
+    if dof_ref.ndim != 2 or dof_ref.shape[0] != k.shape[0] or (dof_ref[:, 1] > 2).any() or (dof_ref[:, 1] < 0).any():
+        raise ModelImportError(f"{path}: unexpected DOF reference (shape {dof_ref.shape}); only UX, UY, UZ supported")
+    return dof_ref, k, m
+
+
+def _sets_inside(archive, sets: dict[str, np.ndarray], node_ids: np.ndarray) -> dict[str, np.ndarray]:
+    """The node components lying wholly in this model: components may name nodes of other parts of the archive."""
+    keep = {}
+    for key, nodes in sets.items():
+        inside = np.isin(nodes, node_ids)
+        if inside.all():
+            keep[key] = nodes
+        else:
+            log.info("%s: node component %r names %d node(s) outside the .full model; left out", archive, key,
+                     int((~inside).sum()))
+    return keep

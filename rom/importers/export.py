@@ -30,7 +30,7 @@ from ..component import Component
 from ..fileio import atomic_path
 from .csvio import write_coords_csv, write_dofmap_csv, write_grids_csv, write_node_sets_csv
 from .matrix_market import write_matrix_market
-from .op4 import write_op4
+from .op4_writer import write_op4
 from .placement import BladePlacement
 
 __all__ = ["ExportedModel", "export_bladed_disk", "EXPORT_FORMATS"]
@@ -98,34 +98,53 @@ def export_bladed_disk(
     written: list[Path] = []
     tables = {}
     for key in ("disk", "blade"):
-        comp: Component = getattr(bd, key)
-        rows = _free_rows(comp)
-        K = comp.K[rows][:, rows].tocsr()
-        M = comp.M[rows][:, rows].tocsr()
-        if format == "mtx":
-            written.append(write_matrix_market(out / f"{key}_K.mtx", K, comment=f"bladetwin {key} stiffness (N/m)"))
-            written.append(write_matrix_market(out / f"{key}_M.mtx", M, comment=f"bladetwin {key} mass (kg)"))
-            files = f'K = "{key}_K.mtx"\nM = "{key}_M.mtx"\n'
-        else:
-            written.append(write_op4(out / f"{key}.op4", {"KAA": K, "MAA": M}, binary=binary))
-            files = f'file = "{key}.op4"\nmatrices = ["KAA", "MAA"]\n'
-        written.append(write_dofmap_csv(out / f"{key}_dofmap.csv", comp.node_ids[rows // 3], rows % 3 + 1))
-        written.append(write_coords_csv(out / f"{key}_coords.csv", comp.node_ids, comp.coords))
-        sets = {name: comp.node_ids[np.asarray(idx)] for name, idx in comp.node_sets.items()}
-        written.append(write_node_sets_csv(out / f"{key}_node_sets.csv", sets))
-        tables[key] = (files + f'dofmap = "{key}_dofmap.csv"\ncoords = "{key}_coords.csv"\n'
-                       f'node_sets = "{key}_node_sets.csv"\nmeas = "meas"\n'
-                       f'meas_direction = {int(comp.meta["meas_direction"])}\n')
+        paths, tables[key] = _write_component(out, key, getattr(bd, key), format, binary)
+        written += paths
+    written.append(_write_grids(out, bd))
+    toml = out / "model.toml"
+    with atomic_path(toml) as tmp:
+        Path(tmp).write_text(_model_toml(bd, format, tables), encoding="utf-8")
+    return ExportedModel(toml, tuple(written) + (toml,))
+
+
+def _write_component(out: Path, key: str, comp: Component, format: str, binary: bool) -> tuple[list[Path], str]:
+    """Write one component's K, M and side files into ``out``: their paths and the ``[model.<key>]`` table's lines."""
+    written: list[Path] = []
+    rows = _free_rows(comp)
+    K = comp.K[rows][:, rows].tocsr()
+    M = comp.M[rows][:, rows].tocsr()
+    if format == "mtx":
+        written.append(write_matrix_market(out / f"{key}_K.mtx", K, comment=f"bladetwin {key} stiffness (N/m)"))
+        written.append(write_matrix_market(out / f"{key}_M.mtx", M, comment=f"bladetwin {key} mass (kg)"))
+        files = f'K = "{key}_K.mtx"\nM = "{key}_M.mtx"\n'
+    else:
+        written.append(write_op4(out / f"{key}.op4", {"KAA": K, "MAA": M}, binary=binary))
+        files = f'file = "{key}.op4"\nmatrices = ["KAA", "MAA"]\n'
+    written.append(write_dofmap_csv(out / f"{key}_dofmap.csv", comp.node_ids[rows // 3], rows % 3 + 1))
+    written.append(write_coords_csv(out / f"{key}_coords.csv", comp.node_ids, comp.coords))
+    sets = {name: comp.node_ids[np.asarray(idx)] for name, idx in comp.node_sets.items()}
+    written.append(write_node_sets_csv(out / f"{key}_node_sets.csv", sets))
+    return written, (files + f'dofmap = "{key}_dofmap.csv"\ncoords = "{key}_coords.csv"\n'
+                     f'node_sets = "{key}_node_sets.csv"\nmeas = "meas"\n'
+                     f'meas_direction = {int(comp.meta["meas_direction"])}\n')
+
+
+def _write_grids(out: Path, bd: BladedDisk) -> Path:
+    """``grids.csv``: the blade's flank grids (slot 0) and every slot's, by node id."""
     grids = {(0, f): bd.blade.node_ids[bd.blade.node_set(f)] for f in ("L", "R")}
     for s in range(1, bd.n_slots + 1):
         for f in ("L", "R"):
             grids[(s, f)] = bd.disk.node_ids[bd.disk.node_set(f"slot{s}_{f}")]
-    written.append(write_grids_csv(out / "grids.csv", grids))
+    return write_grids_csv(out / "grids.csv", grids)
+
+
+def _model_toml(bd: BladedDisk, format: str, tables: dict[str, str]) -> str:
+    """The text of ``model.toml``: the ``[model]`` table with the components' tables, placement and grids."""
     placement = _placement(bd)
     axes = getattr(bd, "axes", None)
     row_axis, col_axis = (axes["L"].row, axes["L"].col) if axes else _ACADEMIC_AXES
     level = getattr(bd.params, "level", "")
-    text = (
+    return (
         f"# bladetwin model: exported by `bladetwin fe export` ({level} twin, grid {bd.params.grid[0]}x"
         f"{bd.params.grid[1]}).\n"
         "# Paths are relative to this file. Units: SI (m, kg, s; K in N/m, M in kg).\n"
@@ -155,7 +174,3 @@ def export_bladed_disk(
         f"row_axis = {_vec(row_axis)}\n"
         f"col_axis = {_vec(col_axis)}\n"
     )
-    toml = out / "model.toml"
-    with atomic_path(toml) as tmp:
-        Path(tmp).write_text(text, encoding="utf-8")
-    return ExportedModel(toml, tuple(written) + (toml,))

@@ -133,12 +133,34 @@ def grid_from_points(
     if not np.isfinite(X).all():
         raise GridError(f"{where}: node coordinates are missing (NaN); give the coordinates of the mesh")
     uv = np.column_stack([X @ axes.row, X @ axes.col])
+    h = _node_spacing(uv, where)
+    rows, cols = _rows_and_columns(uv, h, rtol, where)
+    R, C = int(rows.max()) + 1, int(cols.max()) + 1
+    grid = np.full((R, C), -1, dtype=np.int64)
+    flat = rows * C + cols
+    if np.unique(flat).size != flat.size:
+        raise GridError(f"{where}: two nodes fall on the same grid position; the set does not form a "
+                        f"{R} × {C} lattice")
+    grid.ravel()[flat] = np.arange(X.shape[0])
+    grid = _complete_part(grid, incomplete, where, X.shape[0])
+    if shape is not None and tuple(grid.shape) != tuple(shape):
+        raise GridError(f"{where}: grid is {grid.shape[0]} × {grid.shape[1]}, expected {shape[0]} × {shape[1]}")
+    return grid, h
+
+
+def _node_spacing(uv: np.ndarray, where: str) -> float:
+    """The node spacing h: the smallest in-plane distance between two of the points ``uv`` (n, 2)."""
     dist, nearest = cKDTree(uv).query(uv, k=2)
     h = float(dist[:, 1].min())
     if h <= 0:
         k = int(np.argmin(dist[:, 1]))
         raise GridError(f"{where}: two nodes (positions {k} and {int(nearest[k, 1])}) lie at the same point of the "
                         "flank plane; is the set a flank surface?")
+    return h
+
+
+def _rows_and_columns(uv: np.ndarray, h: float, rtol: float, where: str) -> tuple[np.ndarray, np.ndarray]:
+    """Row and column labels of the points ``uv`` (n, 2) (module notes, step 2), checked to be straight."""
     rows = _clusters(uv[:, 0], rtol * h)
     cols = _clusters(uv[:, 1], rtol * h)
     for lab, t, what in ((rows, uv[:, 0], "row"), (cols, uv[:, 1], "column")):
@@ -147,33 +169,29 @@ def grid_from_points(
         if worst > 0.5 * h:
             raise GridError(f"{where}: nodes of one {what} spread over {worst:.3g} m along its axis (node spacing "
                             f"{h:.3g} m): the flank's nodes do not lie in straight rows and columns along these axes")
-    R, C = int(rows.max()) + 1, int(cols.max()) + 1
-    grid = np.full((R, C), -1, dtype=np.int64)
-    flat = rows * C + cols
-    if np.unique(flat).size != flat.size:
-        raise GridError(f"{where}: two nodes fall on the same grid position; the set does not form a "
-                        f"{R} × {C} lattice")
-    grid.ravel()[flat] = np.arange(X.shape[0])
+    return rows, cols
+
+
+def _complete_part(grid: np.ndarray, incomplete: str, where: str, n_points: int) -> np.ndarray:
+    """The lattice ``grid`` (−1 at empty positions) itself when complete, else its complete rows or columns as
+    ``incomplete`` asks (module notes, step 3)."""
     full = grid >= 0
-    if not full.all():
-        keep_r, keep_c = full.all(axis=1), full.all(axis=0)
-        if incomplete == "drop_rows" and keep_r.sum() >= 2:
-            log.info("%s: dropped %d incomplete rows (%d nodes)", where, int((~keep_r).sum()),
-                     int(full[~keep_r].sum()))
-            grid = grid[keep_r]
-        elif incomplete == "drop_cols" and keep_c.sum() >= 2:
-            log.info("%s: dropped %d incomplete columns (%d nodes)", where, int((~keep_c).sum()),
-                     int(full[:, ~keep_c].sum()))
-            grid = grid[:, keep_c]
-        else:
-            hint = ("" if incomplete != "error" else
-                    "; with mid-side nodes of quadratic elements, incomplete='drop_rows' or 'drop_cols' keeps "
-                    "the complete rows or columns")
-            raise GridError(f"{where}: the {X.shape[0]} nodes fill {int(full.sum())} of the {R} × {C} positions of "
-                            f"their rows and columns: not a complete grid{hint}")
-    if shape is not None and tuple(grid.shape) != tuple(shape):
-        raise GridError(f"{where}: grid is {grid.shape[0]} × {grid.shape[1]}, expected {shape[0]} × {shape[1]}")
-    return grid, h
+    if full.all():
+        return grid
+    keep_r, keep_c = full.all(axis=1), full.all(axis=0)
+    if incomplete == "drop_rows" and keep_r.sum() >= 2:
+        log.info("%s: dropped %d incomplete rows (%d nodes)", where, int((~keep_r).sum()), int(full[~keep_r].sum()))
+        return grid[keep_r]
+    if incomplete == "drop_cols" and keep_c.sum() >= 2:
+        log.info("%s: dropped %d incomplete columns (%d nodes)", where, int((~keep_c).sum()),
+                 int(full[:, ~keep_c].sum()))
+        return grid[:, keep_c]
+    hint = ("" if incomplete != "error" else
+            "; with mid-side nodes of quadratic elements, incomplete='drop_rows' or 'drop_cols' keeps "
+            "the complete rows or columns")
+    R, C = grid.shape
+    raise GridError(f"{where}: the {n_points} nodes fill {int(full.sum())} of the {R} × {C} positions of "
+                    f"their rows and columns: not a complete grid{hint}")
 
 
 @dataclass(frozen=True, eq=False)

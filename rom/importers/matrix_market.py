@@ -26,7 +26,7 @@ import pandas as pd
 import scipy.sparse as sp
 
 from ..fileio import atomic_path
-from .build import symmetrized as _symmetric_or_refused
+from .build import symmetrized
 from .errors import ModelImportError
 
 __all__ = ["MatrixMarketHeader", "read_matrix_market_header", "read_matrix_market", "write_matrix_market"]
@@ -171,8 +171,21 @@ def read_matrix_market(
         raise ModelImportError(f"{path}: {label} has {h.n_rows} rows, the DOF map has {index.size}")
     n = h.n_rows if n is None else int(n)
     dest = (lambda k: k - 1) if index is None else (lambda k: index[k - 1])
+    own, mirrored, lower, upper = _count_rows(path, h, dest, n)
+    half, storage = _storage(path, h, lower, upper, label)
+    counts = own + mirrored if half else own
+    del own, mirrored
+    indptr = _row_pointers(counts)
+    del counts
+    A = _fill_csr(path, h, dest, indptr, half)
+    if not half:
+        A = symmetrized(A, str(path), label)  # refused unless symmetric to round-off
+    return A, storage
 
-    # Pass 1: check, and count entries per destination row, as stored and as mirrored.
+
+def _count_rows(path: Path, h: MatrixMarketHeader, dest, n: int):
+    """Pass 1: check the entries and count them per destination row, as stored and as mirrored (shape (n,) each);
+    whether any lies below (``lower``) or above (``upper``) the diagonal."""
     own = np.zeros(n, dtype=np.int64)
     mirrored = np.zeros(n, dtype=np.int64)
     lower = upper = False
@@ -182,29 +195,41 @@ def read_matrix_market(
         own += np.bincount(dest(i), minlength=n)
         off = i != j
         mirrored += np.bincount(dest(j[off]), minlength=n)
+    return own, mirrored, lower, upper
+
+
+def _storage(path: Path, h: MatrixMarketHeader, lower: bool, upper: bool, label: str) -> tuple[bool, str]:
+    """Whether the file holds one triangle of a symmetric matrix (to be mirrored), and its storage in words."""
     if h.symmetry == "symmetric":
         if lower and upper:
             raise ModelImportError(f"{path}: a 'symmetric' file must store one triangle, this one has entries "
                                    "above and below the diagonal")
-        half, storage = True, f"symmetric, {'upper' if upper else 'lower'} triangle"
-    elif lower != upper:
-        half, storage = True, f"general, {'upper' if upper else 'lower'} triangle only (taken as symmetric)"
+        return True, f"symmetric, {'upper' if upper else 'lower'} triangle"
+    if lower != upper:
         log.info("%s: general storage of one triangle only, taken as the %s triangle of a symmetric %s", path,
                  "upper" if upper else "lower", label)
-    else:
-        half, storage = False, "general (full matrix)"
-    counts = own + mirrored if half else own
-    del own, mirrored
+        return True, f"general, {'upper' if upper else 'lower'} triangle only (taken as symmetric)"
+    return False, "general (full matrix)"
+
+
+def _row_pointers(counts: np.ndarray) -> np.ndarray:
+    """CSR row pointers for ``counts`` entries per row, shape (n + 1,), int32 where the sizes allow."""
+    n = counts.size
     nnz = int(counts.sum())
     idx_dtype = np.int32 if max(n, nnz) < 2**31 - 1 else np.int64
     indptr = np.zeros(n + 1, dtype=idx_dtype)
     np.cumsum(counts, out=indptr[1:])
-    del counts
-    indices = np.empty(nnz, dtype=idx_dtype)
+    return indptr
+
+
+def _fill_csr(path: Path, h: MatrixMarketHeader, dest, indptr: np.ndarray, half: bool) -> sp.csr_matrix:
+    """Pass 2: place every entry (and its mirror, with ``half``) in its row's next free slots of the CSR matrix
+    with row pointers ``indptr``; indices sorted, duplicates summed."""
+    n = indptr.size - 1
+    nnz = int(indptr[-1])
+    indices = np.empty(nnz, dtype=indptr.dtype)
     data = np.empty(nnz, dtype=np.float64)
     nxt = indptr[:-1].astype(np.int64)  # next free slot of every row
-
-    # Pass 2: place every entry (and its mirror) in its row's next free slots.
     for _, i, j, v in _chunks(path, h):
         r, c = dest(i), dest(j)
         if half:
@@ -223,9 +248,7 @@ def read_matrix_market(
     A = sp.csr_matrix((data, indices, indptr), shape=(n, n))
     A.sort_indices()
     A.sum_duplicates()  # duplicated entries add up, as FE assembly does
-    if not half:
-        A = _symmetric_or_refused(A, str(path), label)
-    return A, storage
+    return A
 
 
 def write_matrix_market(path: str | os.PathLike, A: sp.spmatrix, *, comment: str = "",

@@ -2,7 +2,8 @@
 
 Why in-house: pyNastran, the usual Python OP4 reader, pins ``numpy<2`` (version 1.4.1, the latest on PyPI;
 ``pip install --dry-run pyNastran`` here would replace numpy 2.4 by 1.26.4), which the rest of bladetwin
-cannot go back to. The format is small; this module reads and writes the part of it that FE matrices use.
+cannot go back to. The format is small; this module reads, and :mod:`rom.importers.op4_writer` writes, the
+part of it that FE matrices use.
 
 The format (as written by MSC/NX Nastran's OUTPUT4 module)
 ----------------------------------------------------------
@@ -40,15 +41,14 @@ import mmap
 import os
 import re
 import struct
-from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 import scipy.sparse as sp
 
-from ..fileio import atomic_path
 from .errors import ModelImportError
+from .op4_writer import write_op4
 
 __all__ = ["Op4Matrix", "read_op4", "write_op4", "BIGMAT_MIN_ROWS"]
 
@@ -355,226 +355,115 @@ class _Text:
 
 def _read_text(path: Path) -> list[Op4Matrix]:
     src = _Text(path)
-    lines, n = src.lines, len(src.lines)
     out: list[Op4Matrix] = []
     i = 0
-    while i < n:
-        lno, line = src.lno[i], lines[i]
-        try:
-            ncol, nrow, form, mtype = (int(line[8 * c:8 * c + 8]) for c in range(4))
-        except ValueError:
-            raise ModelImportError(f"{path}: line {lno}: expected a matrix header (NCOL, NROW, FORM, TYPE as I8, "
-                                   f"name, format), got {line[:60]!r}") from None
-        name = line[32:40].strip()
-        fmt = _FMT.search(line[40:])
-        if fmt is None:
-            raise ModelImportError(f"{path}: line {lno}: matrix {name!r} header has no number format such as "
-                                   f"'1P,3E23.16' (got {line[40:].strip()!r})")
-        per_line, width = int(fmt.group(1)), int(fmt.group(2))
-        acc, bigmat = _open_matrix(path, name, ncol, nrow, mtype, f"line {lno}: ")
-        storage = "dense"
-        # Walk the integer lines; value lines are only counted here and parsed at the end, all at once.
-        blocks: list[tuple[int, int]] = []
-        runs: list[tuple[int, int, int, bool]] = []  # (column, first row, count, dense)
-        i += 1
-        while True:
-            if i >= n:
-                raise ModelImportError(f"{path}: matrix {name!r} ends without its end record (truncated file?)")
-            lno, line = src.lno[i], lines[i]
-            head = _ints(line, 3)
-            if head is None:
-                raise ModelImportError(f"{path}: line {lno}: expected a column header ICOL, IROW, NW in matrix "
-                                       f"{name!r}, got {line[:60]!r}")
-            icol, irow, nw = head
-            where = f"line {lno}"
-            stop = int(src.next_int[i + 1])
-            if icol > ncol:  # end record and the line of its dummy value
-                i = min(i + 2, stop)
-                break
-            acc.column(icol, where)
-            if irow > 0:
-                count = src.fields_between(i + 1, stop, width)
-                if nw not in (count, 2 * count):
-                    raise ModelImportError(f"{path}: {where}: matrix {name!r} column {icol} announces {nw} numbers "
-                                           f"(or words), {count} follow (damaged file?)")
-                blocks.append((i + 1, stop))
-                runs.append((icol, irow, count, True))
-                i = stop
-                continue
-            if irow < 0:
-                raise ModelImportError(f"{path}: {where}: matrix {name!r} column {icol} has row {irow}")
-            storage = "bigmat" if bigmat else "sparse"
-            used = 0
-            i += 1
-            while used < nw:
-                if i >= n:
-                    raise ModelImportError(f"{path}: matrix {name!r} column {icol} is cut short (truncated file?)")
-                k, text = src.lno[i], lines[i]
-                got = _ints(text, 2 if bigmat else 1)
-                if got is None:
-                    raise ModelImportError(f"{path}: line {k}: expected a {'BIGMAT ' if bigmat else ''}string header "
-                                           f"in matrix {name!r} column {icol}, got {text[:60]!r}")
-                if bigmat:
-                    length, r0 = got[0] - 1, got[1]
-                    used += 2
-                else:
-                    length = got[0] // 65536 - 1
-                    r0 = got[0] - 65536 * (length + 1)
-                    used += 1
-                if length <= 0 or length % 2:
-                    raise ModelImportError(f"{path}: line {k}: string of {length} words in matrix {name!r} column "
-                                           f"{icol} (expected an even, positive count)")
-                stop = int(src.next_int[i + 1])
-                count = src.fields_between(i + 1, stop, width)
-                if count != length // 2:
-                    raise ModelImportError(f"{path}: line {k}: string announces {length // 2} values, {count} follow "
-                                           f"(matrix {name!r} column {icol}; damaged file?)")
-                blocks.append((i + 1, stop))
-                runs.append((icol, r0, count, False))
-                used += length
-                i = stop
-            if used != nw:
-                raise ModelImportError(f"{path}: {where}: matrix {name!r} column {icol} announces {nw} words, its "
-                                       f"strings hold {used} (damaged file?)")
-        if runs:
-            vals = src.parse(blocks, per_line, width)
-            cols, r0, counts, dense = (np.array(v) for v in zip(*runs, strict=True))
-            acc.add_all(cols, r0, counts, dense, vals, f"matrix ending at line {lno}")
-        out.append(Op4Matrix(name, form, acc.matrix(), storage))
+    while i < len(src.lines):
+        matrix, i = _text_matrix(src, i)
+        out.append(matrix)
     return out
 
 
-# ------------------------------------------------------------------------------------------------ writing
-def _strings(rows: np.ndarray) -> list[tuple[int, int]]:
-    """(start, stop) positions of the runs of consecutive row numbers in a sorted column."""
-    if rows.size == 0:
-        return []
-    cuts = np.flatnonzero(np.diff(rows) != 1) + 1
-    starts = np.r_[0, cuts]
-    stops = np.r_[cuts, rows.size]
-    return list(zip(starts.tolist(), stops.tolist(), strict=True))
+def _text_header(src: _Text, i: int) -> tuple[str, int, int, int, int, int, int]:
+    """The matrix header on non-blank line ``i``: name, NCOL, NROW, FORM, TYPE, and the numbers per line and the
+    field width of its number format."""
+    path, lno, line = src.path, src.lno[i], src.lines[i]
+    try:
+        ncol, nrow, form, mtype = (int(line[8 * c:8 * c + 8]) for c in range(4))
+    except ValueError:
+        raise ModelImportError(f"{path}: line {lno}: expected a matrix header (NCOL, NROW, FORM, TYPE as I8, "
+                               f"name, format), got {line[:60]!r}") from None
+    name = line[32:40].strip()
+    fmt = _FMT.search(line[40:])
+    if fmt is None:
+        raise ModelImportError(f"{path}: line {lno}: matrix {name!r} header has no number format such as "
+                               f"'1P,3E23.16' (got {line[40:].strip()!r})")
+    return name, ncol, nrow, form, mtype, int(fmt.group(1)), int(fmt.group(2))
 
 
-def _form_of(A: sp.csc_matrix) -> int:
-    if A.shape[0] != A.shape[1]:
-        return 2
-    D = A - A.T
-    return 6 if D.nnz == 0 or np.abs(D.data).max() == 0 else 1
+def _text_matrix(src: _Text, i: int) -> tuple[Op4Matrix, int]:
+    """The matrix whose header is non-blank line ``i``, and the index of the line after its end record."""
+    path, lines, n = src.path, src.lines, len(src.lines)
+    name, ncol, nrow, form, mtype, per_line, width = _text_header(src, i)
+    acc, bigmat = _open_matrix(path, name, ncol, nrow, mtype, f"line {src.lno[i]}: ")
+    storage = "dense"
+    # Walk the integer lines; value lines are only counted here and parsed at the end, all at once.
+    blocks: list[tuple[int, int]] = []
+    runs: list[tuple[int, int, int, bool]] = []  # (column, first row, count, dense)
+    i += 1
+    while True:
+        if i >= n:
+            raise ModelImportError(f"{path}: matrix {name!r} ends without its end record (truncated file?)")
+        lno, line = src.lno[i], lines[i]
+        head = _ints(line, 3)
+        if head is None:
+            raise ModelImportError(f"{path}: line {lno}: expected a column header ICOL, IROW, NW in matrix "
+                                   f"{name!r}, got {line[:60]!r}")
+        icol, irow, nw = head
+        where = f"line {lno}"
+        stop = int(src.next_int[i + 1])
+        if icol > ncol:  # end record and the line of its dummy value
+            i = min(i + 2, stop)
+            break
+        acc.column(icol, where)
+        if irow > 0:
+            count = src.fields_between(i + 1, stop, width)
+            if nw not in (count, 2 * count):
+                raise ModelImportError(f"{path}: {where}: matrix {name!r} column {icol} announces {nw} numbers "
+                                       f"(or words), {count} follow (damaged file?)")
+            blocks.append((i + 1, stop))
+            runs.append((icol, irow, count, True))
+            i = stop
+            continue
+        if irow < 0:
+            raise ModelImportError(f"{path}: {where}: matrix {name!r} column {icol} has row {irow}")
+        storage = "bigmat" if bigmat else "sparse"
+        i, used = _text_strings(src, i + 1, (name, icol, nw), bigmat, width, blocks, runs)
+        if used != nw:
+            raise ModelImportError(f"{path}: {where}: matrix {name!r} column {icol} announces {nw} words, its "
+                                   f"strings hold {used} (damaged file?)")
+    if runs:
+        vals = src.parse(blocks, per_line, width)
+        cols, r0, counts, dense = (np.array(v) for v in zip(*runs, strict=True))
+        acc.add_all(cols, r0, counts, dense, vals, f"matrix ending at line {lno}")
+    return Op4Matrix(name, form, acc.matrix(), storage), i
 
 
-def write_op4(
-    path: str | os.PathLike,
-    matrices: Mapping[str, sp.spmatrix | np.ndarray],
-    *,
-    binary: bool = True,
-    sparse: bool = True,
-    endian: str = "<",
-) -> Path:
-    """Write matrices to an OP4 file, atomically, in real double precision.
+def _text_strings(src: _Text, i: int, column: tuple[str, int, int], bigmat: bool, width: int,
+                  blocks: list[tuple[int, int]], runs: list[tuple[int, int, int, bool]]) -> tuple[int, int]:
+    """Read the strings of a sparse column from non-blank line ``i`` on, appending their value lines to
+    ``blocks`` and their runs to ``runs``.
 
-    Parameters
-    ----------
-    path : path-like
-    matrices : mapping name → matrix, shape (n_rows, n_cols)
-        Names of at most 8 ASCII characters; values are written as float64. The form is 6 (symmetric) for an
-        exactly symmetric matrix, 1 for another square one, 2 for a rectangular one.
-    binary : bool
-        Fortran unformatted binary (default) or text (``1P,3E23.16``, 17 significant digits: exact).
-    sparse : bool
-        Sparse BIGMAT column storage (default) or dense columns (first to last non-zero of each column).
-    endian : {"<", ">"}
-        Byte order of binary files.
+    ``column`` is (matrix name, ICOL, NW): strings are read until NW words are used. Returns the index of the
+    line after the last string and the words used.
     """
-    if endian not in ("<", ">"):
-        raise ValueError(f"endian must be '<' or '>', got {endian!r}")
-    prepared = []
-    for name, A in matrices.items():
-        if not (isinstance(name, str) and 0 < len(name) <= 8 and name.isascii() and " " not in name):
-            raise ValueError(f"OP4 matrix names have 1..8 ASCII characters without spaces, got {name!r}")
-        A = sp.csc_matrix(A, dtype=np.float64)
-        A.sum_duplicates()  # explicit zeros stay: sparse storage writes them, so the structure reads back
-        A.sort_indices()
-        if not np.isfinite(A.data).all():
-            raise ValueError(f"matrix {name!r} has non-finite values")
-        mag = np.abs(A.data[A.data != 0])
-        if not binary and mag.size and (mag.max() >= 1e100 or mag.min() < 1e-99):
-            raise ValueError(f"matrix {name!r} has values beyond 1e±99, which E23.16 cannot hold: write binary")
-        prepared.append((name, A))
-    with atomic_path(path) as tmp:
-        if binary:
-            with open(tmp, "wb") as fh:
-                for name, A in prepared:
-                    _write_binary(fh, name, A, sparse, endian)
+    path, lines, n = src.path, src.lines, len(src.lines)
+    name, icol, nw = column
+    used = 0
+    while used < nw:
+        if i >= n:
+            raise ModelImportError(f"{path}: matrix {name!r} column {icol} is cut short (truncated file?)")
+        k, text = src.lno[i], lines[i]
+        got = _ints(text, 2 if bigmat else 1)
+        if got is None:
+            raise ModelImportError(f"{path}: line {k}: expected a {'BIGMAT ' if bigmat else ''}string header "
+                                   f"in matrix {name!r} column {icol}, got {text[:60]!r}")
+        if bigmat:
+            length, r0 = got[0] - 1, got[1]
+            used += 2
         else:
-            with open(tmp, "w", encoding="ascii", newline="\n") as fh:
-                for name, A in prepared:
-                    _write_text(fh, name, A, sparse)
-    return Path(path)
-
-
-def _dense_segment(rows: np.ndarray, vals: np.ndarray) -> tuple[int, np.ndarray]:
-    """A dense column's one stored segment: its first row (0-based) and the values from there to its last
-    nonzero, zeros between (a dense OP4 column is written from its first to its last nonzero)."""
-    first, last = int(rows[0]), int(rows[-1])
-    col = np.zeros(last - first + 1)
-    col[rows - first] = vals
-    return first, col
-
-
-def _nonempty_columns(A: sp.csc_matrix):
-    """``(j, rows, values)`` of every column of ``A`` that holds entries (OP4 writes no record for the others)."""
-    for j in range(A.shape[1]):
-        lo, hi = A.indptr[j], A.indptr[j + 1]
-        if lo < hi:
-            yield j, A.indices[lo:hi], A.data[lo:hi]
-
-
-def _write_binary(fh, name: str, A: sp.csc_matrix, sparse: bool, e: str) -> None:
-    n_rows, n_cols = A.shape
-    i4, f8 = e + "i4", e + "f8"
-    head = struct.pack(e + "5i", 24, n_cols, -n_rows if sparse else n_rows, _form_of(A), 2)
-    fh.write(head + name.ljust(8).encode("ascii") + struct.pack(e + "i", 24))
-    for j, rows, vals in _nonempty_columns(A):
-        if not sparse:
-            first, col = _dense_segment(rows, vals)
-            n = 12 + 8 * col.size
-            fh.write(struct.pack(e + "4i", n, j + 1, first + 1, 2 * col.size))
-            fh.write(col.astype(f8).tobytes())
-            fh.write(struct.pack(e + "i", n))
-            continue
-        parts = []
-        nw = 0
-        for s, t in _strings(rows):
-            k = t - s
-            parts.append(np.array([2 * k + 1, rows[s] + 1], dtype=i4).tobytes())
-            parts.append(vals[s:t].astype(f8).tobytes())
-            nw += 2 + 2 * k
-        n = 12 + 4 * nw
-        fh.write(struct.pack(e + "4i", n, j + 1, 0, nw))
-        fh.write(b"".join(parts))
-        fh.write(struct.pack(e + "i", n))
-    fh.write(struct.pack(e + "4i", 20, n_cols + 1, 1, 2) + struct.pack(e + "d", 1.0) + struct.pack(e + "i", 20))
-
-
-def _value_lines(vals: np.ndarray) -> str:
-    text = [f"{v:23.16E}" for v in vals.tolist()]
-    return "".join("".join(text[k:k + 3]) + "\n" for k in range(0, len(text), 3))
-
-
-def _write_text(fh, name: str, A: sp.csc_matrix, sparse: bool) -> None:
-    n_rows, n_cols = A.shape
-    fh.write(f"{n_cols:8d}{-n_rows if sparse else n_rows:8d}{_form_of(A):8d}{2:8d}{name:<8s}1P,3E23.16\n")
-    for j, rows, vals in _nonempty_columns(A):
-        if not sparse:
-            first, col = _dense_segment(rows, vals)
-            fh.write(f"{j + 1:8d}{first + 1:8d}{col.size:8d}\n")
-            fh.write(_value_lines(col))
-            continue
-        runs = _strings(rows)
-        nw = sum(2 + 2 * (t - s) for s, t in runs)
-        fh.write(f"{j + 1:8d}{0:8d}{nw:8d}\n")
-        for s, t in runs:
-            fh.write(f"{2 * (t - s) + 1:8d}{int(rows[s]) + 1:8d}\n")
-            fh.write(_value_lines(vals[s:t]))
-    fh.write(f"{n_cols + 1:8d}{1:8d}{1:8d}\n")
-    fh.write(_value_lines(np.array([1.0])))
+            length = got[0] // 65536 - 1
+            r0 = got[0] - 65536 * (length + 1)
+            used += 1
+        if length <= 0 or length % 2:
+            raise ModelImportError(f"{path}: line {k}: string of {length} words in matrix {name!r} column "
+                                   f"{icol} (expected an even, positive count)")
+        stop = int(src.next_int[i + 1])
+        count = src.fields_between(i + 1, stop, width)
+        if count != length // 2:
+            raise ModelImportError(f"{path}: line {k}: string announces {length // 2} values, {count} follow "
+                                   f"(matrix {name!r} column {icol}; damaged file?)")
+        blocks.append((i + 1, stop))
+        runs.append((icol, r0, count, False))
+        used += length
+        i = stop
+    return i, used

@@ -6,17 +6,17 @@ import numpy as np
 import pytest
 
 from bladetwin.cli import main
-from ema import EMAError, FRFSet, fit, fit_auto_order, write_frfs
+from ema import EMAError, FitSettings, FRFSet, fit, fit_auto_order, write_frfs
 
 from .synth import modal_frfs
-from .test_close_modes import FN, N_OUT, _truth
+from .test_close_modes import FN, N_OUT, close_truth
 
 TOL = 5e-4  # 0.05 %
 
 
 def _close(seed: int) -> FRFSet:
     """The close-modes truth (10 modes, pairs 0.3 % and 0.2 % apart), 1 % noise, 0.25 Hz lines."""
-    zeta, phi = _truth(seed)
+    zeta, phi = close_truth(seed)
     freq = 0.25 * np.arange(1, 4001)
     H = modal_frfs(freq, FN, zeta, phi, phi[:1], "receptance")
     rng = np.random.default_rng(seed + 100)
@@ -31,8 +31,9 @@ def _found(model, truth) -> int:
 
 def test_the_order_grows_until_close_pairs_are_resolved():
     frf = _close(3)  # a seed where order 40 merges modes: a fixed order that suits other data fails here
-    assert _found(fit(frf, method="lscf", max_order=40, grow=False, split=False).model, FN) < FN.size
-    result, order = fit_auto_order(frf, method="lscf", split=False)  # the ladder alone
+    fixed = FitSettings(method="lscf", grow=False, split=False)
+    assert _found(fit(frf, settings=fixed, max_order=40).model, FN) < FN.size
+    result, order = fit_auto_order(frf, settings=FitSettings(method="lscf", split=False))  # the ladder alone
     assert _found(result.model, FN) == FN.size and result.model.n_modes == FN.size
     assert order > 40 and order in (20 * 2 ** k for k in range(6))
 
@@ -43,7 +44,8 @@ def test_a_sparse_spectrum_keeps_a_low_order():
     phi = np.array([[1.0, 0.8, 1.2], [0.5, -0.9, 0.7]])
     H = modal_frfs(freq, fn, zeta, phi, phi[:1], "receptance")
     H = H + 0.01 * np.abs(H) * (np.random.default_rng(1).standard_normal(H.shape)) / np.sqrt(2)
-    result, order = fit_auto_order(FRFSet(freq, H, [(1, 3), (2, 3)], [(1, 3)], form="receptance"), method="lscf")
+    result, order = fit_auto_order(FRFSet(freq, H, [(1, 3), (2, 3)], [(1, 3)], form="receptance"),
+                                   settings=FitSettings(method="lscf"))
     assert _found(result.model, fn) == fn.size and order <= 40
 
 

@@ -7,8 +7,8 @@ mostly in four nodal-diameter families whose mistuned pairs are 0.3-0.45 % apart
 for nodal diameter n, the two members of a pair in quadrature, plus a random localisation, then
 orthonormalised. Four modes sit on or next to sub-band boundaries on purpose.
 
-A single real-coefficient fit of the whole band (``fit(..., n_bands=1)``) finds about half of these modes,
-even at order 200; band-by-band fitting (``fit(..., n_bands=3..6)``) must find all of them, and its merge
+A single real-coefficient fit of the whole band (``FitSettings(n_bands=1)``) finds about half of these modes,
+even at order 200; band-by-band fitting (``FitSettings(n_bands=3..6)``) must find all of them, and its merge
 must neither duplicate nor lose the boundary modes. See docs/ema.md, "Band-by-band fitting".
 """
 
@@ -17,8 +17,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from ema import FRFSet, fit, mac
-from ema.fit import local_poles
+from ema import FitSettings, FRFSet, fit, mac
+from ema.global_fit import local_poles
 from ema.lsrf import lsrf
 from ema.stabilization import stabilize
 
@@ -118,7 +118,7 @@ def _check(result, fn, zeta, phi, n_bands):
 
 def test_band_by_band_fit_recovers_every_mode(dense):
     frf, fn, zeta, phi = dense
-    result = fit(frf, method="lsrf", band=BAND, max_order=60, n_bands=4)
+    result = fit(frf, BAND, FitSettings(n_bands=4), max_order=60)
     assert result.diagram.method == "lsrf/local"
     assert result.diagram.band_hz == BAND
     _check(result, fn, zeta, phi, 4)
@@ -131,7 +131,7 @@ def test_band_by_band_fit_recovers_every_mode(dense):
 @pytest.mark.parametrize("n_bands", [3, 5, 6])
 def test_band_count_does_not_matter(dense, n_bands):
     frf, fn, zeta, phi = dense
-    result = fit(frf, method="lsrf", band=BAND, max_order=60, n_bands=n_bands, refine=False)
+    result = fit(frf, BAND, FitSettings(n_bands=n_bands, refine=False), max_order=60)
     _check(result, fn, zeta, phi, n_bands)
 
 

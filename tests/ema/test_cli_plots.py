@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from bladetwin import cli_ema
-from ema import FRFSet, ModalModel, fit, write_frfs
+from ema import FitSettings, FRFSet, ModalModel, fit, write_frfs
 from ema.plots import plot_frf_fit, plot_mac, plot_stabilization
 
 from .synth import FN, ZETA, synthetic_case
@@ -105,7 +105,7 @@ def test_errors_are_value_errors(tmp_path):
 
 def test_plots_only_read(uff_file):
     _, frf = uff_file
-    result = fit(frf, method="lscf", band=(20, 980), max_order=40, refine=False)
+    result = fit(frf, (20, 980), FitSettings(method="lscf", refine=False), max_order=40)
     fig = plot_stabilization(result.diagram, frf, selected_hz=result.model.frequencies_hz)
     assert fig.axes
     fig = plot_stabilization(result.diagram, frf, indicator="cmif")

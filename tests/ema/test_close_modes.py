@@ -20,7 +20,7 @@ import json
 import numpy as np
 import pytest
 
-from ema import FRFSet, fit, mac, write_frfs
+from ema import FitSettings, FRFSet, fit, mac, write_frfs
 from ema.lsfd import dominance
 from ema.selection import cluster_poles
 from ema.stabilization import STABLE_FD
@@ -35,7 +35,7 @@ TOL = 5e-4  # 0.05 %
 N_OUT = 4
 
 
-def _truth(seed: int = SEED) -> tuple[np.ndarray, np.ndarray]:
+def close_truth(seed: int = SEED) -> tuple[np.ndarray, np.ndarray]:
     """Damping ratios (n_modes,) and shapes (N_OUT, n_modes); the first row is the driving point."""
     rng = np.random.default_rng(seed)
     zeta = rng.uniform(0.0015, 0.01, FN.size)
@@ -50,7 +50,7 @@ def _truth(seed: int = SEED) -> tuple[np.ndarray, np.ndarray]:
 
 @pytest.fixture(scope="module")
 def close():
-    zeta, phi = _truth()
+    zeta, phi = close_truth()
     rng = np.random.default_rng(SEED + 1000)
     freq = 0.25 * np.arange(1, 4001)
     H = modal_frfs(freq, FN, zeta, phi, phi[:1], "receptance")
@@ -95,7 +95,7 @@ def test_truth_has_close_pairs_and_an_edge_mode(close):
 @pytest.mark.parametrize("method", ["lscf", "lsrf"])
 def test_auto_selection_separates_close_pairs(close, method):
     frf, zeta, phi = close
-    result = fit(frf, method=method, max_order=60)
+    result = fit(frf, settings=FitSettings(method=method), max_order=60)
     m = result.model
     _check(m.frequencies_hz, FN)
     np.testing.assert_allclose(m.damping_ratio, zeta, rtol=0.05)
@@ -121,7 +121,7 @@ def test_band_edges_do_not_decide_the_answer(close, method, band):
     """420 Hz (or 175 Hz) sits 60 Hz above the band start with the 290 Hz pair (or the 60 Hz mode) just
     below it; the other edge cuts between modes. Every mode of the band keeps its 0.05 %."""
     frf, _, _ = close
-    result = fit(frf, method=method, band=band, max_order=60)
+    result = fit(frf, band, FitSettings(method=method), max_order=60)
     assert result.diagram.band_hz == band and result.model.band_hz == band
     inside = FN[(FN >= band[0]) & (FN <= band[1])]
     assert np.min(inside) - band[0] == pytest.approx(60.0)
@@ -132,7 +132,7 @@ def test_band_edges_do_not_decide_the_answer(close, method, band):
 
 def test_no_cluster_holds_two_poles_of_one_order(close):
     frf, _, _ = close
-    diagram = fit(frf, method="lsrf", max_order=60, refine=False).diagram
+    diagram = fit(frf, settings=FitSettings(refine=False), max_order=60).diagram
     idx, label = cluster_poles(diagram, STABLE_FD)
     for k in range(int(label.max()) + 1):
         orders = diagram.order[idx[label == k]]
@@ -152,7 +152,7 @@ def test_clusters_do_not_depend_on_the_pair_block_size(close, monkeypatch):
     import ema.selection as selection
 
     frf, _, _ = close
-    diagram = fit(frf, method="lsrf", max_order=60, refine=False).diagram
+    diagram = fit(frf, settings=FitSettings(refine=False), max_order=60).diagram
     whole = cluster_poles(diagram, STABLE_FD)
     monkeypatch.setattr(selection, "_PAIR_BLOCK_ENTRIES", 3 * diagram.vector.shape[1])  # 3 pairs per block
     blocked = cluster_poles(diagram, STABLE_FD)

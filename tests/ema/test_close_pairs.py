@@ -16,7 +16,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from ema import fit
+from ema import FitSettings, fit
 from lab.hammer import HammerSettings, hammer_test
 from lab.rig import RigSetup
 from rom.fe_assembly import AssemblyModes
@@ -39,7 +39,7 @@ def _blade_test(seed: int, response_noise: float = HammerSettings.response_noise
 @pytest.mark.parametrize("method", ["lscf", "lsrf"])
 def test_defaults_resolve_a_close_pair_of_a_hammer_test(method):
     frf = _blade_test(1)
-    found = fit(frf, method=method).model.frequencies_hz
+    found = fit(frf, settings=FitSettings(method=method)).model.frequencies_hz
     truth = FN[FN < BAND[1]]
     err = np.array([np.min(np.abs(found - f)) / f for f in truth])
     assert np.max(err) < TOL, f"{method}: errors in % at {truth}: {np.round(100 * err, 4)}"
@@ -52,8 +52,8 @@ def test_on_a_noisier_test_the_local_check_splits_what_lscf_merges():
     0.19 % off, the defaults' local check splits it (0.005 %). The control shows the check's teeth; at the
     default noise LSCF alone already resolves this pair."""
     frf = _blade_test(1, response_noise=0.05)
-    alone = fit(frf, method="lscf", split=False).model.frequencies_hz
+    alone = fit(frf, settings=FitSettings(method="lscf", split=False)).model.frequencies_hz
     assert np.count_nonzero(np.abs(alone / 2603.9 - 1) < 0.003) == 1
-    found = fit(frf, method="lscf").model.frequencies_hz
+    found = fit(frf, settings=FitSettings(method="lscf")).model.frequencies_hz
     assert np.count_nonzero(np.abs(found / 2603.9 - 1) < 0.003) == 2
     assert max(np.min(np.abs(found - f)) / f for f in FN[FN < BAND[1]]) < TOL

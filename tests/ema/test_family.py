@@ -144,7 +144,7 @@ def test_plot_families_one_panel_per_window(family, fits):
 def test_a_second_merge_keeps_the_structured_shapes(family, fits):
     """merge_families refits free residues for the merged poles; the modes of an earlier structured fit keep
     their rank-one shapes (a second merge, as the residual scan makes, once mixed the family's shapes again)."""
-    from ema.fit import merge_families
+    from ema.families import merge_families
 
     frf = family[0]
     model = fits[1].model
@@ -178,7 +178,7 @@ def test_a_window_that_grew_nothing_adds_no_mode_that_answers_for_none(family, f
     ordinary mode stays."""
     from dataclasses import replace
 
-    from ema.fit import merge_families
+    from ema.families import merge_families
 
     frf = family[0]
     model = fits[0].model

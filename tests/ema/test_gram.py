@@ -1,5 +1,5 @@
 """The family window's Gauss–Newton normal equations from kernel Gram matrices (ema.gram) against two
-independent references: the Jacobian formed explicitly over every row (``_Window.scores``), and the gradient
+independent references: the Jacobian formed explicitly over every row (``FamilyWindow.scores``), and the gradient
 of the variable-projection cost by central differences."""
 
 from __future__ import annotations
@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from ema import FRFSet
-from ema.family import _normalised, _step, _Window
+from ema.family import FamilyWindow, normalised_participations, step_parameters
 from ema.modal import pole_from_modal
 
 
@@ -21,8 +21,8 @@ def _window(form: str, n_in: int, seed: int = 0):
     n = 5
     f = np.sort(rng.uniform(405.0, 445.0, n))
     zeta = rng.uniform(0.001, 0.02, n)
-    part, pivot = _normalised(rng.standard_normal((n_in, n)) + 1j * rng.standard_normal((n_in, n)))
-    return _Window(frf, (402.0, 448.0)), f, zeta, part, pivot
+    part, pivot = normalised_participations(rng.standard_normal((n_in, n)) + 1j * rng.standard_normal((n_in, n)))
+    return FamilyWindow(frf, (402.0, 448.0)), f, zeta, part, pivot
 
 
 @pytest.mark.parametrize("form,n_in", [("mobility", 3), ("receptance", 1), ("accelerance", 4)])
@@ -39,7 +39,7 @@ def test_gram_normal_equations_equal_the_explicit_jacobian_and_finite_difference
         h[k] = 1e-6
         costs = []
         for sign in (1, -1):
-            f2, logz2, part2 = _step(f, np.log(zeta), part, pivot, sign * h)
+            f2, logz2, part2 = step_parameters(f, np.log(zeta), part, pivot, sign * h)
             costs.append(win.solve(pole_from_modal(f2, np.exp(logz2)), part2)[0])
         fd[k] = (costs[0] - costs[1]) / 2e-6
     np.testing.assert_allclose(grad, fd, rtol=1e-5, atol=1e-6 * np.abs(fd).max())

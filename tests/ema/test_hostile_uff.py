@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from bladetwin.cli import main
-from ema import EMAError, FRFSet, UFFError, fit, merge_frfsets, read_frfs, read_uff, write_frfs
+from ema import EMAError, FitSettings, FRFSet, UFFError, fit, merge_frfsets, read_frfs, read_uff, write_frfs
 from ema.lscf import lscf
 from ema.lscf import max_supported_order as lscf_max_order
 from ema.lsrf import lsrf
@@ -313,7 +313,7 @@ def test_nan_at_0_hz_is_left_out_not_refused(tmp_path):
     freq = np.concatenate([[0.0], FREQ])
     H = np.concatenate([np.full((4, 1, 1), np.nan + 0j), _case()], axis=2)
     frf = FRFSet(freq, H, _outputs(4), [(1, 3)])
-    _assert_modes(fit(frf, method="lscf", max_order=40).model.frequencies_hz)
+    _assert_modes(fit(frf, settings=FitSettings(method="lscf"), max_order=40).model.frequencies_hz)
     path = _write(tmp_path / "dc.uff", H, freq=freq)
     back = read_uff(path)
     np.testing.assert_array_equal(back.freq_hz, FREQ)
@@ -365,7 +365,8 @@ def test_poles_do_not_depend_on_the_unit_scale(estimate):
 @pytest.mark.parametrize("method", ["lscf", "lsrf"])
 def test_fit_does_not_depend_on_the_unit_scale(method):
     H = _case()
-    results = [fit(FRFSet(FREQ, H * s, _outputs(4), [(1, 3)]), method=method, max_order=40) for s in SCALES]
+    results = [fit(FRFSet(FREQ, H * s, _outputs(4), [(1, 3)]), settings=FitSettings(method=method), max_order=40)
+               for s in SCALES]
     ref = results[1].model
     _assert_modes(ref.frequencies_hz)
     for s, res in zip(SCALES, results, strict=True):

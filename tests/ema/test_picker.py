@@ -5,8 +5,8 @@ import pytest
 from matplotlib.backend_bases import MouseEvent
 from matplotlib.figure import Figure
 
-from ema.fit import estimate_poles
 from ema.frf import FRFSet
+from ema.global_fit import estimate_poles
 from ema.picker import PolePicker
 from ema.selection import select_picks
 from ema.stabilization import STABLE_FDV, stabilize

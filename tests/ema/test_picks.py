@@ -33,7 +33,7 @@ def frf():
 
 @pytest.fixture(scope="module")
 def auto(frf):
-    return fit(frf, "lsrf", band=BAND, max_order=ORDER)
+    return fit(frf, BAND, max_order=ORDER)
 
 
 def _top_order_picks(diagram, freqs):
@@ -271,7 +271,7 @@ def test_picks_of_one_band_with_the_automatic_fit_elsewhere(frf):
     """Picks covering one band (a mode family of a full assembly) and ``elsewhere``: the modes outside the band
     come from the automatic fit, the ones inside from the picks, all against the truth."""
     band = (400.0, 550.0)
-    zoom = fit(frf, "lsrf", band=band, max_order=ORDER)
+    zoom = fit(frf, band, max_order=ORDER)
     one = Picks(file="assembly.uff", method="lsrf", band_hz=band, max_order=ORDER,
                 picks=_top_order_picks(zoom.diagram, FN[2:]))
     alone = fit_with_picks(frf, one)
@@ -285,5 +285,5 @@ def test_picks_of_one_band_with_the_automatic_fit_elsewhere(frf):
     assert both.quality.shape == (frf.n_outputs, frf.n_inputs) and np.all(both.quality > 0.9)
     # picks that cover every line are the whole answer, with or without elsewhere
     full = Picks(file="assembly.uff", method="lsrf", band_hz=None, max_order=ORDER,
-                 picks=_top_order_picks(fit(frf, "lsrf", max_order=ORDER).diagram, FN[KEEP]))
+                 picks=_top_order_picks(fit(frf, max_order=ORDER).diagram, FN[KEEP]))
     assert fit_with_picks(frf, full, elsewhere={"max_order": ORDER}).model.n_modes == len(KEEP)

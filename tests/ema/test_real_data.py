@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from scipy.signal import find_peaks
 
-from ema import FRFSet, StabilityCriteria, fit, read_uff, write_frfs
+from ema import FitSettings, FRFSet, StabilityCriteria, fit, read_uff, write_frfs
 
 
 @pytest.fixture(scope="module")
@@ -49,15 +49,15 @@ def _check(found, six):
 
 def test_lscf_auto_matches_sdypy(measured, sdypy_six):
     assert sdypy_six.size == 6
-    result = fit(read_uff(measured[0]), method="lscf", band=(10, 1000), max_order=60)
+    result = fit(read_uff(measured[0]), (10, 1000), FitSettings(method="lscf"), max_order=60)
     _check(result.model.frequencies_hz, sdypy_six)
 
 
 def test_lsrf_agrees_with_lscf(measured, sdypy_six):
     frf = read_uff(measured[0])
-    a = fit(frf, method="lscf", band=(10, 1000), max_order=60).model.frequencies_hz
+    a = fit(frf, (10, 1000), FitSettings(method="lscf"), max_order=60).model.frequencies_hz
     # damping of 0.05 % at 1 Hz resolution is not resolvable: loosen the damping stability criterion
-    b = fit(frf, method="lsrf", band=(10, 1000), max_order=60, criteria=StabilityCriteria(damping_tol=0.2))
+    b = fit(frf, (10, 1000), FitSettings(criteria=StabilityCriteria(damping_tol=0.2)), max_order=60)
     b = b.model.frequencies_hz
     _check(b, sdypy_six)
     for f in a:

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from ema import FRFSet, fit, mac
+from ema import FitSettings, FRFSet, fit, mac
 from ema.lscf import lscf
 from ema.lsrf import lsrf
 from ema.stabilization import STABLE_FDV, StabilizationDiagram, stabilize
@@ -31,14 +31,14 @@ def _check(result, phi, refine):
 @pytest.mark.parametrize("method", ["lscf", "lsrf"])
 def test_estimators_recover_truth_without_refinement(method, form):
     frf, phi = _frfset(form)
-    result = fit(frf, method=method, band=(20, 980), max_order=80, refine=False)
+    result = fit(frf, (20, 980), FitSettings(method=method, refine=False), max_order=80)
     _check(result, phi, refine=False)
 
 
 @pytest.mark.parametrize("method", ["lscf", "lsrf"])
 def test_refined_fit_recovers_truth(method):
     frf, phi = _frfset("accelerance")
-    result = fit(frf, method=method, band=(20, 980), max_order=80, refine=True)
+    result = fit(frf, (20, 980), FitSettings(method=method, refine=True), max_order=80)
     _check(result, phi, refine=True)
     assert np.max(np.abs(result.model.damping_ratio - ZETA) / ZETA) < 0.02
     assert result.quality.min() > 0.999
@@ -46,7 +46,7 @@ def test_refined_fit_recovers_truth(method):
 
 def test_poly_reference_lscf_two_inputs():
     frf, phi = _frfset("receptance", n_i=2)
-    result = fit(frf, method="lscf", band=(20, 980), max_order=50, refine=False)
+    result = fit(frf, (20, 980), FitSettings(method="lscf", refine=False), max_order=50)
     _check(result, phi, refine=False)
 
 
@@ -73,7 +73,7 @@ def test_stabilization_classes_and_frozen():
 
 def test_select_near_and_picks():
     frf, _ = _frfset("receptance")
-    near = fit(frf, method="lscf", band=(20, 980), max_order=60, frequencies_hz=[350.5, 779.0], refine=False)
+    near = fit(frf, (20, 980), FitSettings(method="lscf", refine=False), max_order=60, frequencies_hz=[350.5, 779.0])
     assert np.allclose(near.model.frequencies_hz, [350.0, 780.0], rtol=5e-4)
-    picks = fit(frf, method="lscf", band=(20, 980), max_order=60, picks=[(60, 480.0)], refine=False)
+    picks = fit(frf, (20, 980), FitSettings(method="lscf", refine=False), max_order=60, picks=[(60, 480.0)])
     assert picks.model.n_modes == 1 and abs(picks.model.frequencies_hz[0] - 480.0) < 0.5

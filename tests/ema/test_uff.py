@@ -20,7 +20,7 @@ from ema import (
     write_frfs,
     write_modes,
 )
-from ema.uff import _even_axis
+from ema.uff_write import even_axis
 
 EXPECTED_REFUSAL = {
     "1858.uff": "no FRF",
@@ -109,7 +109,7 @@ def test_58b_single_precision(tmp_path, freq):
     assert [d["ord_data_type"] for d in raw] == [5] * 6
     np.testing.assert_allclose(raw[0]["data"], frf.H[0, 0], rtol=2 * eps32)
     # values per point: re, im, and the abscissa when the header cannot rebuild it (uneven axis)
-    n_values = freq.size * 6 * (2 if _even_axis(freq) else 3)
+    n_values = freq.size * 6 * (2 if even_axis(freq) else 3)
     saved = (tmp_path / "d.uff").stat().st_size - (tmp_path / "s.uff").stat().st_size
     assert saved == 4 * n_values
     with pytest.raises(EMAError, match="precision"):

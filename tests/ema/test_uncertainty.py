@@ -5,9 +5,9 @@ from __future__ import annotations
 import numpy as np
 
 from ema.frf import FRFSet
-from ema.lsfd import refine_poles
 from ema.modal import modal_from_pole, pole_from_modal
 from ema.uncertainty import pole_std
+from ema.varpro import refine_poles
 
 from .synth import modal_frfs
 

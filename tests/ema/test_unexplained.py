@@ -14,12 +14,11 @@ import numpy as np
 import pytest
 
 from ema import FRFSet
-from ema.family import unexplained_lines
-from ema.fit import fill_unexplained
 from ema.lsfd import modal_model
 from ema.mac import mac_paired, pair_by_frequency
 from ema.modal import pole_from_modal
 from ema.uncertainty import pole_std
+from ema.unexplained import fill_unexplained, unexplained_lines
 
 from .synth import modal_frfs, rig_noise
 

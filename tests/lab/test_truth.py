@@ -101,12 +101,12 @@ def test_canonical_degenerate_removes_the_solver_basis_of_a_double_mode():
 
 def test_parallel_truth_solves_equal_one_by_one(coarse_bd, patterns):
     """The campaign's forked d1b solves give exactly what the same solves give one after the other."""
-    from lab.campaign import _solve_parallel
+    from lab.campaign import solve_parallel
 
     twin = make_truth_twin(coarse_bd, patterns, np.random.default_rng(5), TruthParams.ideal())
     jobs = [([s], True, 8) for s in (1, 2, 3)]
-    seq = _solve_parallel(twin, jobs, workers=1)
-    par = _solve_parallel(twin, jobs, workers=2)
+    seq = solve_parallel(twin, jobs, workers=1)
+    par = solve_parallel(twin, jobs, workers=2)
     for (la, a), (lb, b) in zip(seq, par, strict=True):
         assert la == lb
         np.testing.assert_array_equal(a.frequencies_hz, b.frequencies_hz)

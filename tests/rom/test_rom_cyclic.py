@@ -76,7 +76,7 @@ def test_circulant_blocks_equal_the_dense_all_slot_reduction(n_blades, small_cyc
 
 def test_the_sector_partition_covers_the_disk():
     """Seven sectors of one interior, one face and one slot grid each make up the whole disk."""
-    from rom.cyclic_sector import sector_blocks
+    from rom.cyclic_partition import sector_blocks
 
     bd = build_bladed_disk(rom_models.COARSE.with_(n_blades=7, grid=(2, 5)))
     sb = sector_blocks(bd)

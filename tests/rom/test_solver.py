@@ -162,17 +162,17 @@ def test_block_krylov_modes_keep_both_copies_of_repeated_eigenvalues(coarse_bd):
 def test_m_orthonormalise_keeps_the_rank_of_a_nearly_dependent_block(clamped_disk):
     """Two columns equal to 1e-4 give two M-orthonormal vectors; equal to 1e-10 (a Krylov block near
     convergence), one. Either way M-orthogonal to the vectors already kept, to round-off."""
-    from rom.solver import _m_orthonormalise
+    from rom.block_krylov import m_orthonormalise
 
     K, M = clamped_disk
     rng = np.random.default_rng(0)
     V0 = rng.standard_normal((K.shape[0], 4))
-    V, _ = _m_orthonormalise(V0, M @ V0, V0[:, :0], V0[:, :0])
+    V, _ = m_orthonormalise(V0, M @ V0, V0[:, :0], V0[:, :0])
     MV = M @ V
     x, y = rng.standard_normal((2, K.shape[0], 1))
     for eps, rank in ((1e-4, 2), (1e-10, 1)):
         X = np.hstack([x, x + eps * y])
-        Q, _ = _m_orthonormalise(X, M @ X, V, MV)
+        Q, _ = m_orthonormalise(X, M @ X, V, MV)
         assert Q.shape[1] == rank
         np.testing.assert_allclose(Q.T @ (M @ Q), np.eye(rank), atol=1e-12)
         assert np.abs(V.T @ (M @ Q)).max() < 1e-12
