@@ -2,9 +2,10 @@
 
 ``make results`` copies the last run's ``summary.json`` into ``docs/results/`` and calls :func:`main`;
 ``make bench-results`` refreshes the benchmarks' files there (``bench_*.json``, each written by a benchmark's
-``--json``). Every figure in the generated text is a JSON value, rounded for display, and the row that shows it
-names its file and key (``source`` column), so a reader (and ``tests/pipeline/test_results_doc.py``) can check
-it. Nothing here computes a figure: it only formats what the run and the benchmarks measured.
+``--json``). Every figure in the generated text is a JSON value, rounded for display. In ``docs/results.md`` the
+row that shows it names its file and key (``source`` column), so a reader (and
+``tests/pipeline/test_results_doc.py``) can check it; the README's blocks are the same rows without that column.
+Nothing here computes a figure: it only formats what the run and the benchmarks measured.
 """
 
 from __future__ import annotations
@@ -17,8 +18,8 @@ from pathlib import Path
 
 from rom.fileio import atomic_path
 
-__all__ = ["Row", "lookup", "table8_rows", "contact_rows", "rom_rows", "performance_rows", "render_results",
-           "readme_blocks", "update_readme", "main"]
+__all__ = ["Row", "lookup", "table8_rows", "contact_rows", "rom_rows", "performance_rows", "width_rows",
+           "render_results", "readme_blocks", "update_readme", "main"]
 
 #: The benchmark files ``make bench-results`` writes, by the name the tables use.
 BENCHMARKS = {"run": "bench_run.json", "rom": "bench_rom.json", "ema": "bench_ema.json",
@@ -142,6 +143,23 @@ def rom_rows(docs: dict) -> list[Row]:
     return rows
 
 
+_WIDTHS = (("contact area, flank L", "area L"), ("contact area, flank R", "area R"),
+           ("centroid ū (axial), flank L", "centroid u L"), ("centroid v̄ (radial), flank L", "centroid v L"),
+           ("centroid ū (axial), flank R", "centroid u R"), ("centroid v̄ (radial), flank R", "centroid v R"))
+
+
+def width_rows(docs: dict) -> list[Row]:
+    """The contact posterior's 90 % interval width over the prior's, per quantity and input (``summary.json`` →
+    ``methods.posterior.width_ratio``): how much the disk–one-blade tests narrow it (1: nothing)."""
+    rows = []
+    for label, key in _WIDTHS:
+        row = _row(label, docs, [("summary.json", f"methods.posterior.width_ratio.{inp}.{key}", ".2f")
+                                 for inp in ("numerical", "experimental")])
+        if any(c != _MISSING for c in row.cells):
+            rows.append(row)
+    return rows
+
+
 _D1B, _FULL = "results[step=rom_d1b]", "results[step=rom_full_cyclic]"
 _CYC, _FE_FULL = "results[step=rom_disk_cyclic]", "results[step=fe_full]"
 #: (label, command, file, [(key, format)] of the figure, the reference measured in the same run, their ratio).
@@ -206,18 +224,21 @@ def performance_rows(docs: dict) -> list[Row]:
     return rows
 
 
-def _table(header: list[str], rows: list[Row], with_command: bool = False) -> list[str]:
-    lines = ["| " + " | ".join(header + ["source"]) + " |", "|" + "---|" * (len(header) + 1)]
+def _table(header: list[str], rows: list[Row], with_command: bool = False, sources: bool = True) -> list[str]:
+    """A Markdown table; ``sources`` adds the ``source`` column (docs/results.md has it, the README does not)."""
+    cols = header + ["source"] if sources else header
+    lines = ["| " + " | ".join(cols) + " |", "|" + "---|" * len(cols)]
     for r in rows:
         cmd = [f"`{r.command}`"] if with_command else []
-        src = ", ".join(f"`{s}`" for s in r.sources)
-        lines.append("| " + " | ".join([r.label, *r.cells, *cmd, src]) + " |")
+        src = [", ".join(f"`{s}`" for s in r.sources)] if sources else []
+        lines.append("| " + " | ".join([r.label, *r.cells, *cmd, *src]) + " |")
     return lines
 
 
 _T8_HEADER = ["Table 8", "mean \\|Δf\\| %", "mean MAC", "paired modes", "paper \\|Δf\\| %", "paper MAC"]
 _METHODS_HEADER = ["unfilmed joints vs truth", "contact posterior", "k-NN (refined)", "baseline"]
 _PERF_HEADER = ["what", "measured", "reference", "ratio", "command"]
+_WIDTH_HEADER = ["posterior 90 % width / prior width", "numerical input", "experimental input"]
 _ROM_HEADER = ["vs the full-assembly test", "paper's ROM \\|Δf\\| %", "paper's ROM MAC", "paired",
                "updated ROM \\|Δf\\| %", "updated ROM MAC", "paired"]
 
@@ -226,26 +247,30 @@ def _pad(rows: list[Row], n: int) -> list[Row]:
     return [Row(r.label, r.cells + ("",) * (n - len(r.cells)), r.sources, r.command) for r in rows]
 
 
-def readme_blocks(docs: dict) -> dict[str, str]:
-    """The README's generated blocks by marker name: ``table8``, ``contact``, ``rom``, ``performance``."""
+def readme_blocks(docs: dict, sources: bool = False) -> dict[str, str]:
+    """The README's generated blocks by marker name: ``table8``, ``contact``, ``rom``, ``performance``.
+
+    ``sources=True`` gives the same blocks with each table's ``source`` column, as ``docs/results.md`` shows them.
+    """
     s = docs.get("summary.json", {})
     run = f"`bladetwin run` on `{s.get('campaign', '?')}`"
     t8 = [f"Figures of {run} (`docs/results/summary.json`; mean over the paired modes), with the paper's ROM. "
           "Cases A and B take the k-NN's answers (the paper's method) unless marked *contact posterior*:", "",
-          *_table(_T8_HEADER, _pad(table8_rows(docs), 5))]
+          *_table(_T8_HEADER, _pad(table8_rows(docs), 5), sources=sources)]
     geo = contact_rows(docs)
     contact = ([f"At the unfilmed joints, against the campaign's true patterns ({run}; the numerical input is the "
                 "ROM's own d1b frequencies with the true patterns, the experimental input the measured ones):", "",
-                *_table(_METHODS_HEADER, _pad(geo, len(_METHODS_HEADER) - 1))] if geo
+                *_table(_METHODS_HEADER, _pad(geo, len(_METHODS_HEADER) - 1), sources=sources)] if geo
                else ["No true patterns in this campaign: no contact check."])
     rom = rom_rows(docs)
     answer = "the contact posterior's" if lookup(s, "methods.posterior") is not None else "the k-NN's"
     rom_text = ([f"The paper's ROM (Eq. 19, rigid contact ties) and the updated ROM (in-situ corrections and "
                  f"contact stiffness fitted on the disk–one-blade tests only), {run}, with the run's answer "
                  f"({answer}) at the unfilmed joints:", "",
-                 *_table(_ROM_HEADER, rom)] if rom else ["The updated ROM did not run (`--rom paper`)."])
+                 *_table(_ROM_HEADER, rom, sources=sources)]
+                if rom else ["The updated ROM did not run (`--rom paper`)."])
     perf = [f"{_machine(docs)}; each figure from the command beside it, with the reference it measures in the "
-            "same run.", "", *_table(_PERF_HEADER, performance_rows(docs), with_command=True)]
+            "same run.", "", *_table(_PERF_HEADER, performance_rows(docs), with_command=True, sources=sources)]
     return {"table8": "\n".join(t8), "contact": "\n".join(contact), "rom": "\n".join(rom_text),
             "performance": "\n".join(perf)}
 
@@ -255,9 +280,19 @@ def _machine(docs: dict) -> str:
     return f"{cpus}-core machine, default model" if cpus else "Default model"
 
 
+def _width_section(docs: dict) -> list[str]:
+    rows = width_rows(docs)
+    if not rows:
+        return []
+    return ["## What the disk–one-blade data pin down", "",
+            "Each quantity's 90 % interval width under the contact posterior over its width under the prior, median "
+            "over the unfilmed joints: 1 means the disk–one-blade tests say nothing about it (docs/identify.md).", "",
+            *_table(_WIDTH_HEADER, rows), ""]
+
+
 def render_results(docs: dict) -> str:
     """The text of ``docs/results.md``."""
-    blocks = readme_blocks(docs)
+    blocks = readme_blocks(docs, sources=True)
     s = docs.get("summary.json", {})
     stages = s.get("stages", {})
     lines = ["# Current results", "",
@@ -265,6 +300,7 @@ def render_results(docs: dict) -> str:
              "figure's file and key is in its row's `source` column.", "",
              f"## Table 8 ({s.get('campaign', '?')})", "", blocks["table8"], "",
              "## Contact at the unfilmed joints", "", blocks["contact"], "",
+             *_width_section(docs),
              "## The paper's ROM and the updated ROM", "", blocks["rom"], "",
              "## Performance", "", blocks["performance"], "",
              "## The run these figures come from", "",

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from bladetwin.results_doc import load_docs, lookup, readme_blocks, render_results, update_readme
+from bladetwin.results_doc import load_docs, lookup, readme_blocks, render_results, update_readme, width_rows
 
 REPO = Path(__file__).resolve().parents[2]
 FOLDER = REPO / "docs" / "results"
@@ -68,12 +68,39 @@ def test_every_figure_in_results_md_equals_its_json():
         assert f"{docs['summary.json']['cases'][case]['mean_abs_df_pct']:.3f}" in text
 
 
+def _without_source(line: str) -> str:
+    """A docs/results.md table line less its last (``source``) column."""
+    return line[:-len("---|")] if line.startswith("|---") else line.rsplit(" | ", 1)[0] + " |"
+
+
 def test_results_md_and_readme_are_regenerated_from_the_json():
     docs = load_docs(FOLDER)
     assert (REPO / "docs" / "results.md").read_text() == render_results(docs), "run `make results`"
     readme = (REPO / "README.md").read_text()
     assert readme == update_readme(readme, readme_blocks(docs)), "run `make results`"
-    assert _check_figures(readme, docs) >= 20
+
+
+def test_readme_tables_are_results_md_rows_without_the_source_column():
+    # every README figure is a row of docs/results.md (whose figures the test above checks against the JSON)
+    results = (REPO / "docs" / "results.md").read_text().splitlines()
+    checked = {_without_source(line) for line in results if line.startswith("|")}
+    blocks = re.findall(r"<!-- results:(\w+) -->\n(.*?)<!-- /results:\1 -->", (REPO / "README.md").read_text(), re.S)
+    assert [name for name, _ in blocks] == ["table8", "contact", "rom", "performance"]
+    rows = [line for _, text in blocks for line in text.splitlines() if line.startswith("|")]
+    assert len(rows) >= 40  # Table 8, the contact check, the ROM table and the performance table
+    assert not [line for line in rows if line not in checked]
+    assert "source" not in "".join(rows) and not [line for line in rows if "summary.json:" in line]
+
+
+def test_sources_only_where_asked():
+    docs = load_docs(FOLDER)
+    plain, sourced = readme_blocks(docs), readme_blocks(docs, sources=True)
+    assert plain.keys() == sourced.keys()
+    for name in plain:
+        a, b = plain[name].splitlines(), sourced[name].splitlines()
+        assert len(a) == len(b)
+        assert [_without_source(x) if x.startswith("|") else x for x in b] == a, name
+        assert _check_figures(plain[name], docs) == 0 and (_check_figures(sourced[name], docs) > 0) == ("|" in b[-1])
 
 
 def test_missing_benchmarks_and_blocks():
@@ -87,6 +114,18 @@ def test_missing_benchmarks_and_blocks():
              "<!-- /results:other -->\n"
     out = update_readme(readme, readme_blocks(docs))
     assert "old" not in out and "| Case A | 0.123" in out and "keep" in out
+
+
+def test_width_rows():
+    ratios = {"area L": 0.6, "area R": 0.7, "centroid u L": 0.9}
+    docs = {"summary.json": {"campaign": "c", "methods": {"posterior": {"width_ratio": {"numerical": ratios}}}}}
+    rows = width_rows(docs)
+    assert [r.label for r in rows] == ["contact area, flank L", "contact area, flank R", "centroid ū (axial), flank L"]
+    assert rows[0].cells == ("0.60", "not measured")
+    assert rows[0].sources[0] == "summary.json:methods.posterior.width_ratio.numerical.area L"
+    text = render_results(docs)
+    assert "## What the disk–one-blade data pin down" in text and _check_figures(text, docs) == 3
+    assert "pin down" not in render_results({"summary.json": {"campaign": "c"}})
 
 
 def test_lookup():
