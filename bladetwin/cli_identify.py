@@ -21,6 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from .cli_options import add_stage_options, stage_options
+from .stages import names
 from .util import atomic_savefig, atomic_write_text, format_table, print_json
 
 __all__ = ["register", "save_synthetic", "load_synthetic"]
@@ -120,8 +121,8 @@ def _stage(args, targets: list[str]):
 
 
 def _cmd_patterns(args) -> int:
-    campaign, res, out, _ = _stage(args, ["synthetic", "films"])
-    sp, films = res["synthetic"], res["films"]
+    campaign, res, out, _ = _stage(args, [names.SYNTHETIC, names.FILMS])
+    sp, films = res[names.SYNTHETIC], res[names.FILMS]
     path = save_synthetic(out / "patterns.npz", sp)
     figure = None
     if not args.no_plot:
@@ -152,8 +153,8 @@ def _span(values) -> str:
 def _cmd_sensitivity(args) -> int:
     from bladetwin.outputs import write_sensitivity
 
-    _, res, out, _ = _stage(args, ["sensitivity"])
-    sens = res["sensitivity"]
+    _, res, out, _ = _stage(args, [names.SENSITIVITY])
+    sens = res[names.SENSITIVITY]
     files = write_sensitivity(sens, out, plot=not args.no_plot)
     rows = [[m + 1, float(sens.mean_hz[m]), float(sens.std_hz[m]), float(sens.std_rel_pct[m]),
              "feature" if m in sens.feature_modes else ""] for m in range(sens.n_modes)]
@@ -172,8 +173,8 @@ def _cmd_sensitivity(args) -> int:
 def _cmd_dataset(args) -> int:
     from identify.dataset import save_dataset
 
-    _, res, out, _ = _stage(args, ["dataset"])
-    ds = res["dataset"]
+    _, res, out, _ = _stage(args, [names.DATASET])
+    ds = res[names.DATASET]
     path = save_dataset(ds, out / "dataset.parquet")
     info = {"dataset": str(path), "n_samples": int(len(ds.deltas)), "delta_grid_pct": (100 * ds.delta_grid).tolist(),
             "feature_modes": [m + 1 for m in ds.feature_modes], "weights": ds.weights.tolist(),
@@ -188,8 +189,8 @@ def _cmd_dataset(args) -> int:
 
 
 def _prediction_rows(campaign, res, args) -> list[list]:
-    pred, delta_all = res["predictions"], res["delta_all"]
-    nd = res["dataset"].deltas.shape[1]
+    pred, delta_all = res[names.PREDICTIONS], res[names.DELTA_ALL]
+    nd = res[names.DATASET].deltas.shape[1]
     rows = []
     for j in range(1, campaign.n_blades + 1):
         lab = pred.labels["experimental"].get(j)
@@ -203,15 +204,16 @@ def _prediction_rows(campaign, res, args) -> list[list]:
 def _cmd_predict(args) -> int:
     from rom.pattern_io import save_patterns
 
-    campaign, res, out, _ = _stage(args, ["patterns/experimental", "predictions", "features"])
-    path = save_patterns(out / "predicted.npz", res["patterns/experimental"])
+    answer = names.patterns("experimental")
+    campaign, res, out, _ = _stage(args, [answer, names.PREDICTIONS, names.FEATURES])
+    path = save_patterns(out / "predicted.npz", res[answer])
     rows = _prediction_rows(campaign, res, args)
     nd = len(rows[0]) - 5
     header = ["joint", "answer", "L", "R", "distance"] + [f"δ{m + 1} %" for m in range(nd)]
     csv = ",".join(header) + "\n" + "".join(
         ",".join(str(c) if not isinstance(c, float) else f"{c:.6g}" for c in r) + "\n" for r in rows)
     atomic_write_text(out / "predictions.csv", csv)
-    bias = res["features"].bias
+    bias = res[names.FEATURES].bias
     if args.json:
         print_json({"predicted": str(path), "table": str(out / "predictions.csv"),
                     "joints": [r[0] for r in rows], "answer": [r[1] for r in rows],
@@ -227,17 +229,18 @@ def _cmd_predict(args) -> int:
 def _cmd_validate(args) -> int:
     from identify.validation import geometric_validation
 
-    campaign, res, out, _ = _stage(args, ["patterns/experimental", "d1b_rows", "baseline", "known", "reference"])
-    known, identified = res["known"], res["patterns/experimental"]
-    reference = res["reference"]
+    answer = names.patterns("experimental")
+    campaign, res, out, _ = _stage(args, [answer, names.D1B_ROWS, names.BASELINE, names.KNOWN, names.REFERENCE])
+    known, identified = res[names.KNOWN], res[answer]
+    reference = res[names.REFERENCE]
     source = "truth (virtual campaign)" if reference is not None else "films of the known joints"
     ref = {j + 1: p for j, p in enumerate(reference)} if reference is not None else known
     joints = [j for j in range(1, campaign.n_blades + 1) if j in ref and j not in known] or sorted(ref)
-    bd = res["fe_model"]
+    bd = res[names.FE_MODEL]
     geo = geometric_validation([identified[j - 1] for j in joints], [ref[j] for j in joints], bd)
-    geo_b = geometric_validation([res["baseline"] for _ in joints], [ref[j] for j in joints], bd)
-    rows = [r for r in res["d1b_rows"] if r["source"] != "film" and "reference_hz" in r]
-    bias = res["features"].bias[list(res["dataset"].feature_modes)]
+    geo_b = geometric_validation([res[names.BASELINE] for _ in joints], [ref[j] for j in joints], bd)
+    rows = [r for r in res[names.D1B_ROWS] if r["source"] != "film" and "reference_hz" in r]
+    bias = res[names.FEATURES].bias[list(res[names.DATASET].feature_modes)]
     err = [100 * (np.asarray(r["identified_hz"]) / (1 + bias) / r["reference_hz"] - 1) for r in rows]
     summary = {
         "reference": source, "joints": joints,
@@ -246,7 +249,7 @@ def _cmd_validate(args) -> int:
         "centroid_distance_mm": {"identified": float(1e3 * np.nanmean(geo.centroid_distance)),
                                  "baseline": float(1e3 * np.nanmean(geo_b.centroid_distance))},
         "d1b_feature_error_pct": {"identified": float(np.mean(np.abs(err))) if err else None},
-        "feature_modes": [m + 1 for m in res["dataset"].feature_modes],
+        "feature_modes": [m + 1 for m in res[names.DATASET].feature_modes],
     }
     atomic_write_text(out / "validation.json", json.dumps(summary, indent=2) + "\n")
     if not args.no_plot:

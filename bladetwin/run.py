@@ -26,19 +26,21 @@ from .stages import (
     campaign_pipeline,
     campaign_sources,
     gather,
+    names,
 )
 from .stages.patterns import read_films
 from .user_warnings import recording, unique
 
 __all__ = ["STAGE_GROUPS", "check_campaign", "run_campaigns", "run_nodes"]
 
-#: Which nodes each figure of ``timings_s`` adds up (compute seconds; the stages overlap on the workers).
-STAGE_GROUPS = {"ema": ("ema/", "blade_table", "calibration"),
-                "rom": ("disk_cb", "blade_rubin", "disk_cyclic", "delta_all"),
-                "dataset": ("synthetic", "sensitivity", "dataset"),
-                "identify": ("features", "predictions", "refine/", "patterns/", "posterior/"),
-                "rom_update": ("rom_update/",),
-                "validation": ("full/", "validation", "d1b_rows", "n_full_modes")}
+#: Which nodes each figure of ``timings_s`` adds up (compute seconds; the stages overlap on the workers): a node
+#: counts in a group where its name starts with one of the group's names or families (:mod:`~.stages.names`).
+STAGE_GROUPS = {"ema": (names.EMA, names.BLADE_TABLE, names.CALIBRATION),
+                "rom": (names.DISK_CB, names.BLADE_RUBIN, names.DISK_CYCLIC, names.DELTA_ALL),
+                "dataset": (names.SYNTHETIC, names.SENSITIVITY, names.DATASET),
+                "identify": (names.FEATURES, names.PREDICTIONS, names.REFINE, names.PATTERNS, names.POSTERIOR),
+                "rom_update": (names.ROM_UPDATE,),
+                "validation": (names.FULL, names.VALIDATION, names.D1B_ROWS, names.N_FULL_MODES)}
 
 
 def check_campaign(campaign: Campaign) -> None:
@@ -72,8 +74,8 @@ class _Prefixed(Mapping):
 def _prefixes(campaigns: list[Campaign]) -> list[str]:
     if len(campaigns) == 1:
         return [""]
-    names = [c.name for c in campaigns]
-    return [f"{n}#{k + 1}/" if names.count(n) > 1 else f"{n}/" for k, n in enumerate(names)]
+    titles = [c.name for c in campaigns]  # not ``names``: that is the catalog of node names
+    return [f"{n}#{k + 1}/" if titles.count(n) > 1 else f"{n}/" for k, n in enumerate(titles)]
 
 
 def _timings(seconds: dict[str, float], prefix: str) -> dict[str, float]:
@@ -90,7 +92,7 @@ def _calibration(c: Campaign, p: Pipeline, nominal: Source, store: Store, opts: 
     needs are stored for the main run); the store's problems it met go to ``problems``, for the summary."""
     src = campaign_sources(c, nominal, store, opts)
     runner = Runner(store, opts.workers, say)
-    cal = runner.run(p, ["calibration"], src)["calibration"]
+    cal = runner.run(p, [names.CALIBRATION], src)[names.CALIBRATION]
     problems.extend(runner.warnings_of())
     return cal
 
@@ -188,7 +190,7 @@ def run_campaigns(campaigns: Iterable[Campaign], opts: RunOptions | None = None,
                   "seconds": dict(sorted(((n[len(pre):], round(runner.seconds[n], 2)) for n in computed
                                           if runner.seconds.get(n, 0.0) >= 0.05), key=lambda kv: -kv[1]))}
         with recording() as texts:
-            res_c = gather(view, c, opts, sources[pre + "fe_model"].value, timings)
+            res_c = gather(view, c, opts, sources[pre + names.FE_MODEL].value, timings)
         found = unique([*checked[len(out)], *runner.warnings_of(pre), *runner.emit(unique(texts))])
         out.append(replace(res_c, stage_counts=counts, warnings=found))
     return out

@@ -1,6 +1,7 @@
 """The stages of ``bladetwin run`` as a graph of named nodes, a content-addressed store and a runner (design §2.1).
 
 - :mod:`~bladetwin.stages.graph`: :class:`Node` (a plain function with declared inputs) and :class:`Pipeline`;
+- :mod:`~bladetwin.stages.names`: the catalog, every node and source name declared once;
 - :mod:`~bladetwin.stages.store`: :class:`Store`, each node's output under the hash of its inputs;
 - :mod:`~bladetwin.stages.runner`: :class:`Runner`, the graph by its dependencies on worker processes;
 - :mod:`~bladetwin.stages.campaign_graph`: the nodes of one campaign (EMA, reductions, films, sensitivity,

@@ -3,7 +3,8 @@
 :func:`campaign_pipeline` lists the nodes a campaign needs (one EMA node per test, one refinement per unfilmed
 joint and input, one full solve per set of patterns) and :func:`campaign_sources` the values they start from.
 ``bladetwin run`` asks for every output; ``bladetwin identify …`` asks for one node and gets it, and what it
-needs, from the same store.
+needs, from the same store. Every node is added, and every input wired, under its name in
+:mod:`~bladetwin.stages.names`, the catalog its readers ask by.
 """
 
 from __future__ import annotations
@@ -21,6 +22,7 @@ from . import (
     knn,
     measured,
     models,
+    names,
     patterns,
     posterior,
     refinement,
@@ -30,8 +32,7 @@ from . import (
 from .graph import Node, Pipeline
 from .runner import Source
 
-__all__ = ["METHODS", "RunOptions", "test_name", "reference_patterns", "campaign_pipeline", "campaign_sources",
-           "identify_inputs"]
+__all__ = ["METHODS", "RunOptions", "reference_patterns", "campaign_pipeline", "campaign_sources", "identify_inputs"]
 
 
 @dataclass(frozen=True)
@@ -122,11 +123,6 @@ METHODS = ("knn", "posterior", "both")
 EMA_PRIORITY = {"blade": 95, "d1b": 90, "disk": 60, "assembly": 55}
 
 
-def test_name(t) -> str:
-    """A test's node name: its type, and its blade or joint number (``blade_03``, ``d1b_12``, ``disk``)."""
-    return t.type if t.index is None else f"{t.type}_{t.index:02d}"
-
-
 def reference_patterns(campaign) -> list | None:
     """Reference patterns of every joint: ``truth/patterns.npz`` of a virtual campaign, or films of all joints."""
     from ..campaign import CampaignError
@@ -164,88 +160,97 @@ def campaign_sources(campaign, model: Source, store, opts: RunOptions, nominal: 
     ``model`` is the FE model the stages use, keyed by :func:`~bladetwin.stages.models.model_key` (calibrated
     where the run calibrates); ``nominal`` the uncalibrated one the calibration starts from (default: ``model``).
     """
-    src = {"campaign": Source(campaign, hash_inputs("campaign", str(campaign.root),
-                                                   (campaign.root / "campaign.toml").read_bytes())),
-           "fe_model": model, "fe_nominal": model if nominal is None else nominal,
-           "@store": Source(store, "store"),
-           "@dask": Source(dataset.DaskSettings(opts.dask_workers, opts.scheduler), "dask")}
+    # the campaign's key hashes the word "campaign" with its manifest: kept, so that stored entries stay valid
+    src = {names.CAMPAIGN: Source(campaign, hash_inputs("campaign", str(campaign.root),
+                                                         (campaign.root / "campaign.toml").read_bytes())),
+           names.FE_MODEL: model, names.FE_NOMINAL: model if nominal is None else nominal,
+           names.STORE: Source(store, "store"),
+           names.DASK: Source(dataset.DaskSettings(opts.dask_workers, opts.scheduler), "dask")}
     for t in campaign.tests:
-        src[f"test/{test_name(t)}"] = Source(t, measured.test_key(t.file, t.picks, t.max_order))
+        src[names.test_source(names.test_name(t))] = Source(t, measured.test_key(t.file, t.picks, t.max_order))
     return src
 
 
 def _ema_nodes(p: Pipeline, campaign) -> None:
     for t in campaign.tests:
-        name = test_name(t)
+        name = names.test_name(t)
         # the assembly's fit, version 3: dense families resolved (ema.fit(families=True)), missed ones filled in;
         # every test, +1: local shapes less the far modes where that fits better (ema.lsfd.local_residues);
         # the assembly, 5: moved starting modes and off-line scan modes refused
-        p.add(Node(f"ema/{name}", measured.fit_test, {"test": f"test/{name}"}, priority=EMA_PRIORITY.get(t.type, 50),
-                   label=f"EMA {name}", version=5 if t.type == "assembly" else 2))
-    blades = {test_name(t): f"ema/{test_name(t)}" for t in campaign.of_type("blade")}
-    p.add(Node("blade_table", measured.blade_table, blades, where="parent"))
+        p.add(Node(names.ema(name), measured.fit_test, {"test": names.test_source(name)},
+                   priority=EMA_PRIORITY.get(t.type, 50), label=f"EMA {name}",
+                   version=5 if t.type == "assembly" else 2))
+    p.add(Node(names.BLADE_TABLE, measured.blade_table, _ema_of(campaign, "blade"), where="parent"))
+
+
+def _ema_of(campaign, kind: str) -> dict[str, str]:
+    """The EMA nodes of a campaign's tests of one type, by test name (the arguments of the nodes that take them)."""
+    return {names.test_name(t): names.ema(names.test_name(t)) for t in campaign.of_type(kind)}
 
 
 def _calibration_node(p: Pipeline, campaign) -> None:
     """The paper's calibration (§5): a worker node, since it solves the model's first modes."""
-    cal = {"bd": "fe_nominal", "campaign": "campaign", "blades": "blade_table"}
+    cal = {"bd": names.FE_NOMINAL, "campaign": names.CAMPAIGN, "blades": names.BLADE_TABLE}
     if campaign.of_type("disk"):
-        cal["disk"] = "ema/disk"
-    p.add(Node("calibration", calibration.calibrate, cal, priority=96, label="material calibrated"))
+        cal["disk"] = names.ema("disk")
+    p.add(Node(names.CALIBRATION, calibration.calibrate, cal, priority=96, label="material calibrated"))
 
 
 def _model_nodes(p: Pipeline) -> None:
-    bd = {"bd": "fe_model"}
-    p.add(Node("disk_cb", models.reduce_disk_cb, bd, priority=100, label="Craig–Bampton disk built"))
-    p.add(Node("blade_rubin", models.reduce_blade_rubin, bd, priority=94, label="Rubin blade built"))
-    p.add(Node("disk_cyclic", models.reduce_disk_all_slots, bd, priority=50, label="cyclic all-slot disk built"))
-    p.add(Node("delta_all", models.blade_deltas, {"blades": "blade_table", "blade": "blade_rubin"}, where="parent"))
+    bd = {"bd": names.FE_MODEL}
+    p.add(Node(names.DISK_CB, models.reduce_disk_cb, bd, priority=100, label="Craig–Bampton disk built"))
+    p.add(Node(names.BLADE_RUBIN, models.reduce_blade_rubin, bd, priority=94, label="Rubin blade built"))
+    p.add(Node(names.DISK_CYCLIC, models.reduce_disk_all_slots, bd, priority=50, label="cyclic all-slot disk built"))
+    p.add(Node(names.DELTA_ALL, models.blade_deltas, {"blades": names.BLADE_TABLE, "blade": names.BLADE_RUBIN},
+               where="parent"))
 
 
 def _pattern_nodes(p: Pipeline, opts: RunOptions, n_blades: int) -> None:
-    p.add(Node("films", patterns.read_films, {"campaign": "campaign"}, where="parent", stored=False,
+    p.add(Node(names.FILMS, patterns.read_films, {"campaign": names.CAMPAIGN}, where="parent", stored=False,
                content_key=True))
-    p.add(Node("known", patterns.film_patterns, {"films": "films"}, where="parent", stored=False, content_key=True))
-    p.add(Node("baseline", patterns.mean_known_pattern, {"known": "known"}, where="parent", stored=False,
+    p.add(Node(names.KNOWN, patterns.film_patterns, {"films": names.FILMS}, where="parent", stored=False,
                content_key=True))
-    p.add(Node("reference", reference_patterns, {"campaign": "campaign"}, where="parent", stored=False,
+    p.add(Node(names.BASELINE, patterns.mean_known_pattern, {"known": names.KNOWN}, where="parent", stored=False,
                content_key=True))
-    p.add(Node("synthetic", patterns.synthetic_patterns, {"films": "films"},
+    p.add(Node(names.REFERENCE, reference_patterns, {"campaign": names.CAMPAIGN}, where="parent", stored=False,
+               content_key=True))
+    p.add(Node(names.SYNTHETIC, patterns.synthetic_patterns, {"films": names.FILMS},
                {"n_patterns": opts.n_patterns, "scale": opts.scale, "seed": opts.seed}, where="parent"))
-    p.add(Node("patterns/baseline", refinement.pattern_list, {"known": "known", "baseline": "baseline"},
+    p.add(Node(names.PATTERNS_BASELINE, refinement.pattern_list, {"known": names.KNOWN, "baseline": names.BASELINE},
                {"n_blades": n_blades}, where="parent", stored=False, content_key=True))
 
 
 def _identify_nodes(p: Pipeline, campaign, opts: RunOptions) -> None:
-    rom = {"disk": "disk_cb", "blade": "blade_rubin"}
-    p.add(Node("sensitivity", dataset.sensitivity_node, {**rom, "synthetic": "synthetic"},
+    rom = {"disk": names.DISK_CB, "blade": names.BLADE_RUBIN}
+    p.add(Node(names.SENSITIVITY, dataset.sensitivity_node, {**rom, "synthetic": names.SYNTHETIC},
                {"n_features": opts.n_features}, priority=85, label="sensitivity"))
     in_parent = opts.dask_workers is not None or opts.scheduler is not None  # a Dask client from a worker: no
-    p.add(Node("dataset", dataset.dataset_node, {**rom, "synthetic": "synthetic", "delta_all": "delta_all",
-                                                 "sens": "sensitivity", "store": "@store", "dask": "@dask"},
+    p.add(Node(names.DATASET, dataset.dataset_node,
+               {**rom, "synthetic": names.SYNTHETIC, "delta_all": names.DELTA_ALL, "sens": names.SENSITIVITY,
+                "store": names.STORE, "dask": names.DASK},
                {"n_features": opts.n_features, "n_delta_modes": opts.n_delta_modes, "step_pct": opts.step_pct},
                where="parent" if in_parent else "worker", priority=85, label="dataset"))
-    d1b = {test_name(t): f"ema/{test_name(t)}" for t in campaign.of_type("d1b")}
-    p.add(Node("features", bias.features, {**rom, "dataset": "dataset", "delta_all": "delta_all", "known": "known",
-                                           "reference": "reference", **d1b},
+    p.add(Node(names.FEATURES, bias.features,
+               {**rom, "dataset": names.DATASET, "delta_all": names.DELTA_ALL, "known": names.KNOWN,
+                "reference": names.REFERENCE, **_ema_of(campaign, "d1b")},
                {"n_delta_modes": opts.n_delta_modes, "bias": opts.bias}, priority=85,
                label="bias on the filmed joints"))
-    p.add(Node("predictions", knn.predict, {"dataset": "dataset", "features": "features", "delta_all": "delta_all",
-                                            "known": "known"},
+    p.add(Node(names.PREDICTIONS, knn.predict, {"dataset": names.DATASET, "features": names.FEATURES,
+                                                "delta_all": names.DELTA_ALL, "known": names.KNOWN},
                {"n_delta_modes": opts.n_delta_modes, "bias": opts.bias, "step_pct": opts.step_pct}, where="parent",
                version=2))
     unfilmed = [t.index for t in campaign.of_type("d1b") if t.index not in campaign.known_joints]
     for k, name in enumerate(identify_inputs(campaign, opts)):
         refined = {}
         for j in unfilmed if opts.refine and opts.knn_reported else ():
-            refined[f"joint_{j:02d}"] = p.add(Node(
-                f"refine/{name}/joint_{j:02d}", refinement.refine_joint,
-                {**rom, "dataset": "dataset", "films": "films", "synthetic": "synthetic",
-                 "predictions": "predictions", "delta_all": "delta_all", "store": "@store"},
+            refined[names.joint_key(j)] = p.add(Node(
+                names.refine(name, j), refinement.refine_joint,
+                {**rom, "dataset": names.DATASET, "films": names.FILMS, "synthetic": names.SYNTHETIC,
+                 "predictions": names.PREDICTIONS, "delta_all": names.DELTA_ALL, "store": names.STORE},
                 {"input": name, "joint": int(j), "max_solves": int(opts.refine)}, priority=40 - 10 * k,
                 label=f"joint {j} refined ({name} input)", version=2)).name
-        p.add(Node(f"patterns/{name}", refinement.joint_patterns, {"predictions": "predictions", "known": "known",
-                                                                  "baseline": "baseline", **refined},
+        p.add(Node(names.patterns(name), refinement.joint_patterns,
+                   {"predictions": names.PREDICTIONS, "known": names.KNOWN, "baseline": names.BASELINE, **refined},
                    {"input": name, "n_blades": campaign.n_blades}, where="parent", stored=False, content_key=True))
 
 
@@ -257,58 +262,60 @@ def _posterior_nodes(p: Pipeline, campaign, opts: RunOptions) -> None:
         # refused before any computation: the prior's PCA has at most one component fewer than the films
         raise CampaignError(f"--components {opts.n_components}: the {n_known} filmed joints of {campaign.name} "
                             f"support at most {max(n_known - 1, 0)} per flank")
-    rom = {"disk": "disk_cb", "blade": "blade_rubin", "dataset": "dataset"}
-    p.add(Node("posterior/prior", posterior.prior_node, {"films": "films"},
+    rom = {"disk": names.DISK_CB, "blade": names.BLADE_RUBIN, "dataset": names.DATASET}
+    p.add(Node(names.POSTERIOR_PRIOR, posterior.prior_node, {"films": names.FILMS},
                {"scale": opts.scale, "n_components": opts.n_components}, where="parent"))
     n = posterior.N_SOLVES // posterior.N_PARTS
-    parts = {f"part_{k}": p.add(Node(f"posterior/solves/part_{k}", posterior.surrogate_solves,
-                                     {**rom, "prior": "posterior/prior"},
+    parts = {f"part_{k}": p.add(Node(names.posterior_part(k), posterior.surrogate_solves,
+                                     {**rom, "prior": names.POSTERIOR_PRIOR},
                                      {"part": k, "n": n, "seed": opts.seed, "widen": posterior.WIDEN},
                                      priority=80, label=f"surrogate solves {k + 1}/{posterior.N_PARTS}")).name
              for k in range(posterior.N_PARTS)}
-    p.add(Node("posterior/surrogate", posterior.surrogate_node, parts, where="parent"))
-    p.add(Node("posterior/representation", posterior.representation_error, {**rom, "films": "films",
-                                                                           "prior": "posterior/prior"},
+    p.add(Node(names.POSTERIOR_SURROGATE, posterior.surrogate_node, parts, where="parent"))
+    p.add(Node(names.POSTERIOR_REPRESENTATION, posterior.representation_error,
+               {**rom, "films": names.FILMS, "prior": names.POSTERIOR_PRIOR},
                priority=80, label="the prior family's error on the films"))
     unfilmed = [t.index for t in campaign.of_type("d1b") if t.index not in campaign.known_joints]
-    p.add(Node("posterior/factors", posterior.delta_factors, {**rom, "baseline": "baseline", "delta_all": "delta_all"},
+    p.add(Node(names.POSTERIOR_FACTORS, posterior.delta_factors,
+               {**rom, "baseline": names.BASELINE, "delta_all": names.DELTA_ALL},
                {"joints": [int(j) for j in unfilmed]}, priority=80, label="δ factors of the posterior"))
+    fits = {t.index: names.ema(names.test_name(t)) for t in campaign.of_type("d1b")}
     # the full solves take the experimental (bias removed) and numerical inputs' answers
     for k, name in enumerate(n for n in identify_inputs(campaign, opts) if n != "experimental_no_bias"):
         posts = {}
         for j in unfilmed:
-            posts[f"joint_{j:02d}"] = p.add(Node(
-                f"posterior/{name}/joint_{j:02d}", posterior.posterior_joint,
-                {**rom, "features": "features", "prior": "posterior/prior", "surrogate": "posterior/surrogate",
-                 "delta_all": "delta_all", "factors": "posterior/factors", "bd": "fe_model",
-                 "reference": "reference", "fit": f"ema/d1b_{j:02d}", "representation": "posterior/representation"},
+            posts[names.joint_key(j)] = p.add(Node(
+                names.posterior_joint(name, j), posterior.posterior_joint,
+                {**rom, "features": names.FEATURES, "prior": names.POSTERIOR_PRIOR,
+                 "surrogate": names.POSTERIOR_SURROGATE, "delta_all": names.DELTA_ALL,
+                 "factors": names.POSTERIOR_FACTORS, "bd": names.FE_MODEL, "reference": names.REFERENCE,
+                 "fit": fits[j], "representation": names.POSTERIOR_REPRESENTATION},
                 {"input": name, "joint": int(j), "seed": opts.seed}, version=2, priority=38 - 10 * k,
                 label=f"joint {j} posterior ({name} input)")).name
-        p.add(Node(f"patterns/posterior_{name}", posterior.posterior_patterns,
-                   {"known": "known", "baseline": "baseline", **posts}, {"n_blades": campaign.n_blades},
+        p.add(Node(names.posterior_patterns(name), posterior.posterior_patterns,
+                   {"known": names.KNOWN, "baseline": names.BASELINE, **posts}, {"n_blades": campaign.n_blades},
                    where="parent", stored=False, content_key=True))
 
 
 #: The full solves: name → the patterns they take, and their priority.
-FULL = {"baseline": ("patterns/baseline", 45), "reference": ("reference", 45),
-        "identified": ("patterns/experimental", 35), "identified_no_bias": ("patterns/experimental_no_bias", 25),
-        "numerical": ("patterns/numerical", 15), "posterior": ("patterns/posterior_experimental", 36),
-        "posterior_numerical": ("patterns/posterior_numerical", 16)}
+FULL = {"baseline": (names.PATTERNS_BASELINE, 45), "reference": (names.REFERENCE, 45),
+        "identified": (names.patterns("experimental"), 35),
+        "identified_no_bias": (names.patterns("experimental_no_bias"), 25),
+        "numerical": (names.patterns("numerical"), 15), "posterior": (names.posterior_patterns("experimental"), 36),
+        "posterior_numerical": (names.posterior_patterns("numerical"), 16)}
 
 
 def _full_wanted(name: str, inputs: list[str], opts: RunOptions) -> bool:
     """Whether the run solves the full assembly ``name`` (:data:`FULL`): its patterns' input ran."""
     if name in ("baseline", "reference"):
         return name == "baseline" or "numerical" in inputs
-    source = FULL[name][0].split("/")[-1]
-    if source.startswith("posterior_"):
-        return opts.posterior and source.removeprefix("posterior_") in inputs
-    return source in inputs
+    by_posterior, source = names.answer_of(FULL[name][0])
+    return (opts.posterior or not by_posterior) and source in inputs
 
 
 def _answer(opts: RunOptions, name: str) -> str:
     """The node of the run's answer for input ``name``: the posterior's where it ran, else the k-NN's."""
-    return f"patterns/posterior_{name}" if opts.posterior else f"patterns/{name}"
+    return names.posterior_patterns(name) if opts.posterior else names.patterns(name)
 
 
 #: The ROM update's sets of patterns: name → what its progress message calls them, and its nodes' priority.
@@ -323,64 +330,67 @@ def _update_nodes(p: Pipeline, campaign, opts: RunOptions) -> list[str]:
     The control ``full/updated_baseline`` (each blade's ε re-fitted for the baseline patterns) only where the
     campaign has a full-assembly test, the one thing it is compared with (Case B).
     """
-    rom = {"disk": "disk_cb", "blade": "blade_rubin", "dataset": "dataset", "features": "features",
-           "delta_all": "delta_all", "bd": "fe_model"}
-    d1b = {test_name(t): f"ema/{test_name(t)}" for t in campaign.of_type("d1b")}
-    p.add(Node("rom_update/stiffness", rom_update.stiffness_node, {**rom, "known": "known", **d1b}, priority=60,
-               label="contact stiffness fitted"))
+    rom = {"disk": names.DISK_CB, "blade": names.BLADE_RUBIN, "dataset": names.DATASET, "features": names.FEATURES,
+           "delta_all": names.DELTA_ALL, "bd": names.FE_MODEL}
+    d1b = _ema_of(campaign, "d1b")
+    p.add(Node(names.ROM_UPDATE_STIFFNESS, rom_update.stiffness_node, {**rom, "known": names.KNOWN, **d1b},
+               priority=60, label="contact stiffness fitted"))
     inputs = identify_inputs(campaign, opts)
     sets = {"answer": _answer(opts, "experimental")}
     if "numerical" in inputs:
-        sets["reference"] = "reference"
+        sets["reference"] = names.REFERENCE
     if campaign.of_type("assembly"):
-        sets["baseline"] = "patterns/baseline"
+        sets["baseline"] = names.PATTERNS_BASELINE
     for name, pats in sets.items():
         what, prio = UPDATE_SETS[name]
         # Only the exported ROM's update warns: the controls would repeat its warnings with other figures.
-        p.add(Node(f"rom_update/{name}", rom_update.update_node,
-                   {**rom, "stiffness": "rom_update/stiffness", "patterns": pats, **d1b}, {"warn": name == "answer"},
-                   priority=prio, label=f"in-situ corrections ({what} patterns)"))
+        p.add(Node(names.rom_update(name), rom_update.update_node,
+                   {**rom, "stiffness": names.ROM_UPDATE_STIFFNESS, "patterns": pats, **d1b},
+                   {"warn": name == "answer"}, priority=prio, label=f"in-situ corrections ({what} patterns)"))
     solves = {"updated": (_answer(opts, "experimental"), "answer")}
     if "reference" in sets:
-        solves["updated_reference"] = ("reference", "reference")
+        solves["updated_reference"] = (names.REFERENCE, "reference")
         solves["updated_numerical"] = (_answer(opts, "numerical"), "reference")
     if "baseline" in sets:
-        solves["updated_baseline"] = ("patterns/baseline", "baseline")
+        solves["updated_baseline"] = (names.PATTERNS_BASELINE, "baseline")
     for name, (pats, upd) in solves.items():
-        p.add(Node(f"full/{name}", rom_update.solve_updated,
-                   {"cyclic": "disk_cyclic", "bd": "fe_model", "blade": "blade_rubin", "patterns": pats,
-                    "delta_all": "delta_all", "n_modes": "n_full_modes", "update": f"rom_update/{upd}"},
+        p.add(Node(names.full(name), rom_update.solve_updated,
+                   {**_full_inputs(pats), "update": names.rom_update(upd)},
                    priority=UPDATE_SETS[upd][1] - 1, label=f"full-assembly ROM '{name}' solved"))
     return list(solves)
 
 
 def _validation_nodes(p: Pipeline, campaign, opts: RunOptions) -> None:
     inputs = identify_inputs(campaign, opts)
-    assembly = {"assembly": "ema/assembly"} if campaign.of_type("assembly") else {}
-    p.add(Node("n_full_modes", full.n_full_modes, assembly, {"n_blades": campaign.n_blades}, where="parent",
+    assembly = {"assembly": names.ema("assembly")} if campaign.of_type("assembly") else {}
+    p.add(Node(names.N_FULL_MODES, full.n_full_modes, assembly, {"n_blades": campaign.n_blades}, where="parent",
                stored=False))
-    names = [n for n in FULL if _full_wanted(n, inputs, opts)]
-    for name in names:
+    solves = [n for n in FULL if _full_wanted(n, inputs, opts)]
+    for name in solves:
         pats, prio = FULL[name]
-        p.add(Node(f"full/{name}", full.solve_assembly, {"cyclic": "disk_cyclic", "bd": "fe_model",
-                                                         "blade": "blade_rubin", "patterns": pats,
-                                                         "delta_all": "delta_all", "n_modes": "n_full_modes"},
-                   priority=prio, label=f"full-assembly ROM '{name}' solved"))
+        p.add(Node(names.full(name), full.solve_assembly, _full_inputs(pats), priority=prio,
+                   label=f"full-assembly ROM '{name}' solved"))
     if opts.updated:
-        names += _update_nodes(p, campaign, opts)
+        solves += _update_nodes(p, campaign, opts)
     # version 2: the control B_baseline of both ROMs (cases["rom"])
-    p.add(Node("validation", validation.full_validation, {**assembly, **{n: f"full/{n}" for n in names}},
+    p.add(Node(names.VALIDATION, validation.full_validation, {**assembly, **{n: names.full(n) for n in solves}},
                {"bias": opts.bias, "answer": "posterior" if opts.posterior else "knn"}, version=2, where="parent"))
-    numerical = "patterns/numerical" if "numerical" in inputs else "reference"
-    p.add(Node("d1b_rows", validation.d1b_rows, {
-        "disk": "disk_cb", "blade": "blade_rubin", "dataset": "dataset", "features": "features",
-        "delta_all": "delta_all", "known": "known", "identified": "patterns/experimental", "reference": "reference",
-        "numerical": numerical}, {"source": "k-NN + refinement" if opts.refine else "k-NN"}, priority=30,
-        label="disk-one-blade validation"))
+    numerical = names.patterns("numerical") if "numerical" in inputs else names.REFERENCE
+    p.add(Node(names.D1B_ROWS, validation.d1b_rows, {
+        "disk": names.DISK_CB, "blade": names.BLADE_RUBIN, "dataset": names.DATASET, "features": names.FEATURES,
+        "delta_all": names.DELTA_ALL, "known": names.KNOWN, "identified": names.patterns("experimental"),
+        "reference": names.REFERENCE, "numerical": numerical},
+        {"source": "k-NN + refinement" if opts.refine else "k-NN"}, priority=30, label="disk-one-blade validation"))
+
+
+def _full_inputs(patterns: str) -> dict[str, str]:
+    """The inputs of a full-assembly solve with the answer ``patterns`` (the paper's ROM's and the updated one's)."""
+    return {"cyclic": names.DISK_CYCLIC, "bd": names.FE_MODEL, "blade": names.BLADE_RUBIN, "patterns": patterns,
+            "delta_all": names.DELTA_ALL, "n_modes": names.N_FULL_MODES}
 
 
 def campaign_pipeline(campaign, opts: RunOptions) -> Pipeline:
-    """Every node of ``bladetwin run`` for ``campaign`` (names as in the module notes)."""
+    """Every node of ``bladetwin run`` for ``campaign``, named as in :mod:`~bladetwin.stages.names`."""
     p = Pipeline()
     _ema_nodes(p, campaign)
     if opts.calibrate:

@@ -22,7 +22,8 @@ class Node:
     Attributes
     ----------
     name : str
-        The output's name, unique in a pipeline (e.g. ``"ema/blade_01"``).
+        The output's name, unique in a pipeline (e.g. ``"ema/blade_01"``); a campaign's are declared in
+        :mod:`~bladetwin.stages.names`.
     func : callable
         A module-level function (worker processes import it by name). It computes and returns; it never
         draws or writes files.

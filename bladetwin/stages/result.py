@@ -12,8 +12,9 @@ from identify.film import orientation_checked
 from identify.validation import GridError
 from rom.contact import ContactPattern
 
+from . import names
 from .bias import MATCH_WINDOW, Features
-from .campaign_graph import RunOptions, identify_inputs, test_name
+from .campaign_graph import RunOptions, identify_inputs
 from .full import method_note
 from .knn import Predictions
 from .measured import BladeTests
@@ -92,7 +93,7 @@ class RunResult:
 
 
 def _outside_note(res: dict, opts: RunOptions) -> str | None:
-    pred, f, ds = res["predictions"], res["features"], res["dataset"]
+    pred, f, ds = res[names.PREDICTIONS], res[names.FEATURES], res[names.DATASET]
     feat = list(ds.feature_modes)
     tol = 2 * f.spread[feat]
     outside = {j: lab[3] for j, lab in pred.labels["experimental"].items() if lab[4]}
@@ -110,12 +111,13 @@ def _outside_note(res: dict, opts: RunOptions) -> str | None:
 
 def _refine_note(res: dict, campaign, opts: RunOptions) -> str:
     parts = []
+    refined = {k: ij[0] for k in res if (ij := names.per_joint(k, names.REFINE)) is not None}
     for name in identify_inputs(campaign, opts):
-        found = [r for k, r in res.items() if k.startswith(f"refine/{name}/") and r is not None]
+        found = [r for r in (res[k] for k, i in refined.items() if i == name) if r is not None]
         before = float(np.mean([r.start_error_pct for r in found])) if found else float("nan")
         after = float(np.mean([r.error_pct for r in found])) if found else float("nan")
         parts.append(f"{name.replace('_', ' ')} input {before:.3f} % → {after:.3f} %")
-    tol = res["predictions"].tolerance_pct["experimental"]
+    tol = res[names.PREDICTIONS].tolerance_pct["experimental"]
     return ("Unfilmed joints' patterns refined after the k-NN by a compass search in the synthetic family and the "
             f"contact level (≤ {opts.refine} d1b solves each, stopping at the model error: {tol:.3f} %"
             f"{' with the bias correction' if opts.bias else ''}; beyond the paper). Mean feature error, k-NN pair "
@@ -141,24 +143,24 @@ def _film_note(films: dict) -> str | None:
 
 def _notes(res: dict, campaign, opts: RunOptions, fits: dict) -> list[str]:
     notes = []
-    film_note = _film_note(res["films"])
+    film_note = _film_note(res[names.FILMS])
     if film_note:
         notes.append(film_note)
     picked = [t.file.name for t, fit in fits.values() if fit.picked]
     if picked:
         notes.append("Picks files replaced the automatic pole selection for: " + ", ".join(picked) + ".")
-    if opts.bias and not res["features"].bias_estimated:
+    if opts.bias and not res[names.FEATURES].bias_estimated:
         notes.append("Fewer than 2 filmed joints have a disk-one-blade test: the model bias was not estimated.")
     tested = {t.index for t in campaign.of_type("d1b")}
     untested = [j for j in range(1, campaign.n_blades + 1) if j not in tested and j not in campaign.known_joints]
     if untested:
         notes.append(f"Joints {untested}: no disk-one-blade test in the manifest; they get the baseline pattern "
                      "(the films' majority), not an identification.")
-    missing = res["predictions"].missing
+    missing = res[names.PREDICTIONS].missing
     if missing:
         notes.append(f"Joints {missing}: none of the feature modes was found in the disk-one-blade EMA within "
                      f"{100 * MATCH_WINDOW:.0f} %; they get the baseline pattern.")
-    partial = res["predictions"].partial
+    partial = res[names.PREDICTIONS].partial
     if partial:
         which = "; ".join(f"joint {j}: mode {', '.join(map(str, m))}" for j, m in partial.items())
         notes.append(f"Feature modes not found in the disk-one-blade EMA within {100 * MATCH_WINDOW:.0f} % ({which}): "
@@ -168,41 +170,44 @@ def _notes(res: dict, campaign, opts: RunOptions, fits: dict) -> list[str]:
         notes.append(outside)
     if opts.refine and opts.knn_reported:
         notes.append(_refine_note(res, campaign, opts))
-    notes.append(method_note({k.split("/", 1)[1]: v for k, v in res.items() if k.startswith("full/")}))
-    return notes + list(res["validation"].notes)
+    notes.append(method_note(names.members(res, names.FULL)))
+    return notes + list(res[names.VALIDATION].notes)
 
 
 def gather(res, campaign, opts: RunOptions, bd, timings: dict[str, float]) -> RunResult:
-    """The :class:`RunResult` of one campaign from the runner's outputs (names of its pipeline)."""
-    fits = {test_name(t): (t, res[f"ema/{test_name(t)}"]) for t in campaign.tests}
-    fulls = {k.split("/", 1)[1]: res[k].modes for k in res if k.startswith("full/")}
+    """The :class:`RunResult` of one campaign from the runner's outputs, asked for by their names in
+    :mod:`~bladetwin.stages.names`."""
+    fits = {names.test_name(t): (t, res[names.ema(names.test_name(t))]) for t in campaign.tests}
+    fulls = {solve: s.modes for solve, s in names.members(res, names.FULL).items()}
     post = _posterior(res) if opts.posterior else {}
     # the run's answer is the posterior's where it ran (design §8.30), else the k-NN's
-    final = res["patterns/posterior_experimental"] if post else res["patterns/experimental"]
-    return RunResult(campaign, opts, bd, fits, res["blade_table"], res["films"], res["known"], res["synthetic"],
-                     res["sensitivity"], res["dataset"], res["delta_all"], res["features"], res["predictions"],
-                     final, res["baseline"], res["reference"], res["d1b_rows"], fulls,
-                     res["validation"], _notes(res, campaign, opts, fits), timings, posterior=post,
-                     answers=_answers(res, opts),
-                     rom_update={k.split("/", 1)[1]: res[k] for k in res if k.startswith("rom_update/")},
-                     calibration=res["calibration"] if "calibration" in res else None)
+    final = res[names.posterior_patterns("experimental") if post else names.patterns("experimental")]
+    return RunResult(
+        campaign=campaign, options=opts, bd=bd, ema=fits, blades=res[names.BLADE_TABLE], films=res[names.FILMS],
+        known=res[names.KNOWN], synthetic=res[names.SYNTHETIC], sensitivity=res[names.SENSITIVITY],
+        dataset=res[names.DATASET], delta_all=res[names.DELTA_ALL], features=res[names.FEATURES],
+        predictions=res[names.PREDICTIONS], final_patterns=final, baseline_pattern=res[names.BASELINE],
+        reference=res[names.REFERENCE], d1b_rows=res[names.D1B_ROWS], full=fulls, validation=res[names.VALIDATION],
+        notes=_notes(res, campaign, opts, fits), timings_s=timings, posterior=post, answers=_answers(res, opts),
+        rom_update=names.members(res, names.ROM_UPDATE),
+        calibration=res[names.CALIBRATION] if names.CALIBRATION in res else None)
 
 
 def _answers(res, opts: RunOptions) -> dict:
     out = {}
-    for method, prefix, on in (("knn", "patterns/", opts.knn_reported), ("posterior", "patterns/posterior_",
-                                                                          opts.posterior)):
+    for method, answer, on in (("knn", names.patterns, opts.knn_reported),
+                               ("posterior", names.posterior_patterns, opts.posterior)):
         if on:
-            out[method] = {i: res[prefix + i] for i in ("experimental", "numerical") if prefix + i in res}
+            out[method] = {i: res[answer(i)] for i in ("experimental", "numerical") if answer(i) in res}
     return out
 
 
 def _posterior(res) -> dict:
     """The posterior's nodes gathered: prior, surrogate, and per input each joint's posterior."""
-    out: dict = {"prior": res["posterior/prior"], "surrogate": res["posterior/surrogate"]}
+    out: dict = {"prior": res[names.POSTERIOR_PRIOR], "surrogate": res[names.POSTERIOR_SURROGATE]}
     for k in res:
-        parts = k.split("/")
-        if len(parts) == 3 and parts[0] == "posterior" and parts[2].startswith("joint_") and res[k] is not None:
-            out.setdefault(parts[1], {})[int(parts[2].rsplit("_", 1)[1])] = res[k]
+        input_joint = names.per_joint(k, names.POSTERIOR)
+        if input_joint is not None and res[k] is not None:
+            out.setdefault(input_joint[0], {})[input_joint[1]] = res[k]
     return out
 
