@@ -44,6 +44,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("campaign", nargs="?", default=None, help="campaign folder (default: the bundled one)")
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--json", default=None, metavar="PATH", help="also write the figures to this JSON file")
+    ap.add_argument("--summary", default=None, metavar="PATH",
+                    help="also keep the cold run's summary.json here (e.g. docs/results/summary.json)")
     args = ap.parse_args(argv)
     with tempfile.TemporaryDirectory(prefix="bladetwin-cold-") as tmp:
         cache = Path(tmp) / "cache"
@@ -63,6 +65,9 @@ def main(argv: list[str] | None = None) -> int:
     if args.json:
         with atomic_path(args.json) as tmp_path:
             tmp_path.write_text(json.dumps(figures, indent=2))
+    if args.summary:
+        with atomic_path(args.summary) as tmp_path:
+            tmp_path.write_text(json.dumps(cold, indent=2, ensure_ascii=False))
     return 0
 
 

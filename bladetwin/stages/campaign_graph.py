@@ -120,7 +120,6 @@ METHODS = ("knn", "posterior", "both")
 #: Which EMA first, among the nodes ready with it: the longest chain of the run starts at the CB disk and the blade
 #: and d1b tests (dataset → k-NN → refinement); the disk and full-assembly tests are only needed by the full solves,
 #: which also wait for the cyclic disk.
-EMA_PRIORITY = {"blade": 95, "d1b": 90, "disk": 60, "assembly": 55}
 
 
 def reference_patterns(campaign) -> list | None:
@@ -177,8 +176,7 @@ def _ema_nodes(p: Pipeline, campaign) -> None:
         # the assembly's fit, version 3: dense families resolved (ema.fit(families=True)), missed ones filled in;
         # every test, +1: local shapes less the far modes where that fits better (ema.lsfd.local_residues);
         # the assembly, 5: moved starting modes and off-line scan modes refused
-        p.add(Node(names.ema(name), measured.fit_test, {"test": names.test_source(name)},
-                   priority=EMA_PRIORITY.get(t.type, 50), label=f"EMA {name}",
+        p.add(Node(names.ema(name), measured.fit_test, {"test": names.test_source(name)}, label=f"EMA {name}",
                    version=5 if t.type == "assembly" else 2))
     p.add(Node(names.BLADE_TABLE, measured.blade_table, _ema_of(campaign, "blade"), where="parent"))
 
@@ -193,14 +191,14 @@ def _calibration_node(p: Pipeline, campaign) -> None:
     cal = {"bd": names.FE_NOMINAL, "campaign": names.CAMPAIGN, "blades": names.BLADE_TABLE}
     if campaign.of_type("disk"):
         cal["disk"] = names.ema("disk")
-    p.add(Node(names.CALIBRATION, calibration.calibrate, cal, priority=96, label="material calibrated"))
+    p.add(Node(names.CALIBRATION, calibration.calibrate, cal, label="material calibrated"))
 
 
 def _model_nodes(p: Pipeline) -> None:
     bd = {"bd": names.FE_MODEL}
-    p.add(Node(names.DISK_CB, models.reduce_disk_cb, bd, priority=100, label="Craig–Bampton disk built"))
-    p.add(Node(names.BLADE_RUBIN, models.reduce_blade_rubin, bd, priority=94, label="Rubin blade built"))
-    p.add(Node(names.DISK_CYCLIC, models.reduce_disk_all_slots, bd, priority=50, label="cyclic all-slot disk built"))
+    p.add(Node(names.DISK_CB, models.reduce_disk_cb, bd, label="Craig–Bampton disk built"))
+    p.add(Node(names.BLADE_RUBIN, models.reduce_blade_rubin, bd, label="Rubin blade built"))
+    p.add(Node(names.DISK_CYCLIC, models.reduce_disk_all_slots, bd, label="cyclic all-slot disk built"))
     p.add(Node(names.DELTA_ALL, models.blade_deltas, {"blades": names.BLADE_TABLE, "blade": names.BLADE_RUBIN},
                where="parent"))
 
@@ -223,31 +221,31 @@ def _pattern_nodes(p: Pipeline, opts: RunOptions, n_blades: int) -> None:
 def _identify_nodes(p: Pipeline, campaign, opts: RunOptions) -> None:
     rom = {"disk": names.DISK_CB, "blade": names.BLADE_RUBIN}
     p.add(Node(names.SENSITIVITY, dataset.sensitivity_node, {**rom, "synthetic": names.SYNTHETIC},
-               {"n_features": opts.n_features}, priority=85, label="sensitivity"))
+               {"n_features": opts.n_features}, label="sensitivity"))
     in_parent = opts.dask_workers is not None or opts.scheduler is not None  # a Dask client from a worker: no
     p.add(Node(names.DATASET, dataset.dataset_node,
                {**rom, "synthetic": names.SYNTHETIC, "delta_all": names.DELTA_ALL, "sens": names.SENSITIVITY,
                 "store": names.STORE, "dask": names.DASK},
                {"n_features": opts.n_features, "n_delta_modes": opts.n_delta_modes, "step_pct": opts.step_pct},
-               where="parent" if in_parent else "worker", priority=85, label="dataset"))
+               where="parent" if in_parent else "worker", label="dataset"))
     p.add(Node(names.FEATURES, bias.features,
                {**rom, "dataset": names.DATASET, "delta_all": names.DELTA_ALL, "known": names.KNOWN,
                 "reference": names.REFERENCE, **_ema_of(campaign, "d1b")},
-               {"n_delta_modes": opts.n_delta_modes, "bias": opts.bias}, priority=85,
+               {"n_delta_modes": opts.n_delta_modes, "bias": opts.bias},
                label="bias on the filmed joints"))
     p.add(Node(names.PREDICTIONS, knn.predict, {"dataset": names.DATASET, "features": names.FEATURES,
                                                 "delta_all": names.DELTA_ALL, "known": names.KNOWN},
                {"n_delta_modes": opts.n_delta_modes, "bias": opts.bias, "step_pct": opts.step_pct}, where="parent",
                version=2))
     unfilmed = [t.index for t in campaign.of_type("d1b") if t.index not in campaign.known_joints]
-    for k, name in enumerate(identify_inputs(campaign, opts)):
+    for name in identify_inputs(campaign, opts):
         refined = {}
         for j in unfilmed if opts.refine and opts.knn_reported else ():
             refined[names.joint_key(j)] = p.add(Node(
                 names.refine(name, j), refinement.refine_joint,
                 {**rom, "dataset": names.DATASET, "films": names.FILMS, "synthetic": names.SYNTHETIC,
                  "predictions": names.PREDICTIONS, "delta_all": names.DELTA_ALL, "store": names.STORE},
-                {"input": name, "joint": int(j), "max_solves": int(opts.refine)}, priority=40 - 10 * k,
+                {"input": name, "joint": int(j), "max_solves": int(opts.refine)},
                 label=f"joint {j} refined ({name} input)", version=2)).name
         p.add(Node(names.patterns(name), refinement.joint_patterns,
                    {"predictions": names.PREDICTIONS, "known": names.KNOWN, "baseline": names.BASELINE, **refined},
@@ -269,19 +267,19 @@ def _posterior_nodes(p: Pipeline, campaign, opts: RunOptions) -> None:
     parts = {f"part_{k}": p.add(Node(names.posterior_part(k), posterior.surrogate_solves,
                                      {**rom, "prior": names.POSTERIOR_PRIOR},
                                      {"part": k, "n": n, "seed": opts.seed, "widen": posterior.WIDEN},
-                                     priority=80, label=f"surrogate solves {k + 1}/{posterior.N_PARTS}")).name
+                                     label=f"surrogate solves {k + 1}/{posterior.N_PARTS}")).name
              for k in range(posterior.N_PARTS)}
     p.add(Node(names.POSTERIOR_SURROGATE, posterior.surrogate_node, parts, where="parent"))
     p.add(Node(names.POSTERIOR_REPRESENTATION, posterior.representation_error,
                {**rom, "films": names.FILMS, "prior": names.POSTERIOR_PRIOR},
-               priority=80, label="the prior family's error on the films"))
+               label="the prior family's error on the films"))
     unfilmed = [t.index for t in campaign.of_type("d1b") if t.index not in campaign.known_joints]
     p.add(Node(names.POSTERIOR_FACTORS, posterior.delta_factors,
                {**rom, "baseline": names.BASELINE, "delta_all": names.DELTA_ALL},
-               {"joints": [int(j) for j in unfilmed]}, priority=80, label="δ factors of the posterior"))
+               {"joints": [int(j) for j in unfilmed]}, label="δ factors of the posterior"))
     fits = {t.index: names.ema(names.test_name(t)) for t in campaign.of_type("d1b")}
     # the full solves take the experimental (bias removed) and numerical inputs' answers
-    for k, name in enumerate(n for n in identify_inputs(campaign, opts) if n != "experimental_no_bias"):
+    for name in (n for n in identify_inputs(campaign, opts) if n != "experimental_no_bias"):
         posts = {}
         for j in unfilmed:
             posts[names.joint_key(j)] = p.add(Node(
@@ -290,26 +288,25 @@ def _posterior_nodes(p: Pipeline, campaign, opts: RunOptions) -> None:
                  "surrogate": names.POSTERIOR_SURROGATE, "delta_all": names.DELTA_ALL,
                  "factors": names.POSTERIOR_FACTORS, "bd": names.FE_MODEL, "reference": names.REFERENCE,
                  "fit": fits[j], "representation": names.POSTERIOR_REPRESENTATION},
-                {"input": name, "joint": int(j), "seed": opts.seed}, version=2, priority=38 - 10 * k,
+                {"input": name, "joint": int(j), "seed": opts.seed}, version=2,
                 label=f"joint {j} posterior ({name} input)")).name
         p.add(Node(names.posterior_patterns(name), posterior.posterior_patterns,
                    {"known": names.KNOWN, "baseline": names.BASELINE, **posts}, {"n_blades": campaign.n_blades},
                    where="parent", stored=False, content_key=True))
 
 
-#: The full solves: name → the patterns they take, and their priority.
-FULL = {"baseline": (names.PATTERNS_BASELINE, 45), "reference": (names.REFERENCE, 45),
-        "identified": (names.patterns("experimental"), 35),
-        "identified_no_bias": (names.patterns("experimental_no_bias"), 25),
-        "numerical": (names.patterns("numerical"), 15), "posterior": (names.posterior_patterns("experimental"), 36),
-        "posterior_numerical": (names.posterior_patterns("numerical"), 16)}
+#: The full solves: name → the patterns they take.
+FULL = {"baseline": names.PATTERNS_BASELINE, "reference": names.REFERENCE,
+        "identified": names.patterns("experimental"), "identified_no_bias": names.patterns("experimental_no_bias"),
+        "numerical": names.patterns("numerical"), "posterior": names.posterior_patterns("experimental"),
+        "posterior_numerical": names.posterior_patterns("numerical")}
 
 
 def _full_wanted(name: str, inputs: list[str], opts: RunOptions) -> bool:
     """Whether the run solves the full assembly ``name`` (:data:`FULL`): its patterns' input ran."""
     if name in ("baseline", "reference"):
         return name == "baseline" or "numerical" in inputs
-    by_posterior, source = names.answer_of(FULL[name][0])
+    by_posterior, source = names.answer_of(FULL[name])
     return (opts.posterior or not by_posterior) and source in inputs
 
 
@@ -318,10 +315,9 @@ def _answer(opts: RunOptions, name: str) -> str:
     return names.posterior_patterns(name) if opts.posterior else names.patterns(name)
 
 
-#: The ROM update's sets of patterns: name → what its progress message calls them, and its nodes' priority.
-#: ``baseline`` is the control (Case B with the films' majority at every unfilmed joint): it is ready as soon as
-#: the contact stiffness is, and runs after the answer's, beside the identification's other work.
-UPDATE_SETS = {"answer": ("identified", 34), "reference": ("true", 34), "baseline": ("baseline", 32)}
+#: The ROM update's sets of patterns: name → what its progress message calls them. ``baseline`` is the control
+#: (Case B with the films' majority at every unfilmed joint).
+UPDATE_SETS = {"answer": "identified", "reference": "true", "baseline": "films' majority"}
 
 
 def _update_nodes(p: Pipeline, campaign, opts: RunOptions) -> list[str]:
@@ -334,7 +330,7 @@ def _update_nodes(p: Pipeline, campaign, opts: RunOptions) -> list[str]:
            "delta_all": names.DELTA_ALL, "bd": names.FE_MODEL}
     d1b = _ema_of(campaign, "d1b")
     p.add(Node(names.ROM_UPDATE_STIFFNESS, rom_update.stiffness_node, {**rom, "known": names.KNOWN, **d1b},
-               priority=60, label="contact stiffness fitted"))
+               label="contact stiffness fitted"))
     inputs = identify_inputs(campaign, opts)
     sets = {"answer": _answer(opts, "experimental")}
     if "numerical" in inputs:
@@ -342,11 +338,11 @@ def _update_nodes(p: Pipeline, campaign, opts: RunOptions) -> list[str]:
     if campaign.of_type("assembly"):
         sets["baseline"] = names.PATTERNS_BASELINE
     for name, pats in sets.items():
-        what, prio = UPDATE_SETS[name]
+        what = UPDATE_SETS[name]
         # Only the exported ROM's update warns: the controls would repeat its warnings with other figures.
         p.add(Node(names.rom_update(name), rom_update.update_node,
                    {**rom, "stiffness": names.ROM_UPDATE_STIFFNESS, "patterns": pats, **d1b},
-                   {"warn": name == "answer"}, priority=prio, label=f"in-situ corrections ({what} patterns)"))
+                   {"warn": name == "answer"}, label=f"in-situ corrections ({what} patterns)"))
     solves = {"updated": (_answer(opts, "experimental"), "answer")}
     if "reference" in sets:
         solves["updated_reference"] = (names.REFERENCE, "reference")
@@ -355,8 +351,7 @@ def _update_nodes(p: Pipeline, campaign, opts: RunOptions) -> list[str]:
         solves["updated_baseline"] = (names.PATTERNS_BASELINE, "baseline")
     for name, (pats, upd) in solves.items():
         p.add(Node(names.full(name), rom_update.solve_updated,
-                   {**_full_inputs(pats), "update": names.rom_update(upd)},
-                   priority=UPDATE_SETS[upd][1] - 1, label=f"full-assembly ROM '{name}' solved"))
+                   {**_full_inputs(pats), "update": names.rom_update(upd)}, label=f"full-assembly ROM '{name}' solved"))
     return list(solves)
 
 
@@ -367,8 +362,8 @@ def _validation_nodes(p: Pipeline, campaign, opts: RunOptions) -> None:
                stored=False))
     solves = [n for n in FULL if _full_wanted(n, inputs, opts)]
     for name in solves:
-        pats, prio = FULL[name]
-        p.add(Node(names.full(name), full.solve_assembly, _full_inputs(pats), priority=prio,
+        pats = FULL[name]
+        p.add(Node(names.full(name), full.solve_assembly, _full_inputs(pats),
                    label=f"full-assembly ROM '{name}' solved"))
     if opts.updated:
         solves += _update_nodes(p, campaign, opts)
@@ -380,7 +375,7 @@ def _validation_nodes(p: Pipeline, campaign, opts: RunOptions) -> None:
         "disk": names.DISK_CB, "blade": names.BLADE_RUBIN, "dataset": names.DATASET, "features": names.FEATURES,
         "delta_all": names.DELTA_ALL, "known": names.KNOWN, "identified": names.patterns("experimental"),
         "reference": names.REFERENCE, "numerical": numerical},
-        {"source": "k-NN + refinement" if opts.refine else "k-NN"}, priority=30, label="disk-one-blade validation"))
+        {"source": "k-NN + refinement" if opts.refine else "k-NN"}, label="disk-one-blade validation"))
 
 
 def _full_inputs(patterns: str) -> dict[str, str]:

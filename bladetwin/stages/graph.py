@@ -41,8 +41,6 @@ class Node:
     content_key : bool
         The output's key is the hash of the value itself, not of the inputs' keys: nodes downstream of it
         are then found in the store whenever their inputs are equal, however they were reached.
-    priority : int
-        Larger first, among the nodes ready at the same time (the longest chains first).
     label : str
         What progress messages call it.
     """
@@ -55,7 +53,6 @@ class Node:
     where: str = "worker"
     stored: bool = True
     content_key: bool = False
-    priority: int = 0
     label: str = ""
 
     def __post_init__(self) -> None:
@@ -111,6 +108,25 @@ class Pipeline:
             stack.extend(self._nodes[name].inputs.values())
         return [n for n in self._nodes.values() if n.name in need]
 
+    def chain_lengths(self, names: Iterable[str]) -> dict[str, int]:
+        """Each of ``names``: the most nodes on a chain from it to the end of the pipeline within ``names``
+        (itself counted).
+
+        The runner starts the ready node with the longest chain first, so that the longest chains (the
+        critical path, counted in nodes: a cold run has no durations to weigh them by) never wait.
+        """
+        names = set(names)
+        below: dict[str, list[str]] = {n: [] for n in names}
+        for n in self._nodes.values():
+            if n.name in names:
+                for src in n.inputs.values():
+                    if src in below:
+                        below[src].append(n.name)
+        length: dict[str, int] = {}
+        for name in reversed([n for n in self._nodes if n in names]):  # consumers come after their inputs
+            length[name] = 1 + max((length[c] for c in below[name]), default=0)
+        return length
+
     def consumers(self) -> dict[str, list[str]]:
         """Output name → the nodes that take it as an input."""
         out: dict[str, list[str]] = {n: [] for n in self._nodes}
@@ -125,5 +141,5 @@ class Pipeline:
             return shared.get(x, f"{prefix}/{x}")
 
         return Pipeline(Node(rename(n.name), n.func, {k: rename(v) for k, v in n.inputs.items()}, n.params,
-                             n.version, n.where, n.stored, n.content_key, n.priority, n.label or n.name)
+                             n.version, n.where, n.stored, n.content_key, n.label or n.name)
                         for n in self._nodes.values())

@@ -2,7 +2,8 @@
 
 Nodes whose output is in the store are not run. The others run as soon as their inputs exist: ``where="worker"``
 nodes on a :class:`concurrent.futures.ProcessPoolExecutor` (one BLAS thread each, so ``workers`` nodes share the
-cores), ``where="parent"`` ones here. Among ready nodes the one of highest priority goes first.
+cores), ``where="parent"`` ones here. Among ready nodes the one with the longest chain of nodes after it goes
+first (:meth:`~bladetwin.stages.graph.Pipeline.chain_lengths`).
 
 Forking after MKL (design §8.17): once a process has run MKL's OpenMP team (a threaded Pardiso phase), a child
 forked from it that enters one waits forever. The pool therefore forks at the start of :meth:`Runner.run`,
@@ -279,6 +280,7 @@ class Runner:
         self.sources = dict(sources)
         nodes = pipeline.needed_for(self.targets, self.sources)
         needed = {n.name for n in nodes}
+        self.chain = pipeline.chain_lengths(needed)
         self.consumers = {k: [c for c in v if c in needed] for k, v in pipeline.consumers().items()}
         for name, src in self.sources.items():
             key = src.key if src.key is not None else content_key(src.value)
@@ -318,7 +320,7 @@ class Runner:
             ready = sorted((n for n in nodes if self._demanded(n.name, memo)
                             and (n.func_id, self.state[n.name].key) not in self._running_keys
                             and all(self._available(src) for src in n.inputs.values())),
-                           key=lambda n: -n.priority)
+                           key=lambda n: -self.chain[n.name])
             here = [n for n in ready if n.where == "parent" or pool is None]
             if here:
                 self._run_here(here[0])  # then look again: its output may make others stored or ready
