@@ -24,6 +24,7 @@ from .craig_bampton import CraigBamptonModel, reduce_disk
 from .cyclic import CyclicDiskModel, reduce_disk_cyclic, solve_full_cyclic
 from .errors import ROMError
 from .fe_assembly import AssemblyModes, FEAssembly, assemble_fe, solve_fe
+from .forced import AmplificationFactor, BladeModes, ForcedResponse, amplification_factors, forced_response
 from .rom_assembly import ReducedAssembly, assemble_d1b, assemble_full, solve_d1b, solve_full
 from .rubin import RubinModel, reduce_blade
 from .solver import ModalSolution, nodal_diameters, solve_modes
@@ -38,4 +39,5 @@ __all__ = [
     "CraigBamptonModel", "reduce_disk", "RubinModel", "reduce_blade",
     "ReducedAssembly", "assemble_d1b", "assemble_full", "solve_d1b", "solve_full",
     "CyclicDiskModel", "reduce_disk_cyclic", "solve_full_cyclic",
+    "AmplificationFactor", "BladeModes", "ForcedResponse", "amplification_factors", "forced_response",
 ]
