@@ -7,12 +7,10 @@ the force :func:`impact_force` gives on its simulation grid (docs/twin.md, "The 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
 
 import numpy as np
 
-if TYPE_CHECKING:
-    from .hammer import HammerSettings
+from .hammer_settings import HammerSettings
 
 __all__ = ["Impacts", "draw_impacts", "impact_force"]
 

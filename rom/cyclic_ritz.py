@@ -9,19 +9,15 @@ all-slot CB model with the blades, :func:`outputs` the measurement rows.
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
 import numpy as np
 import scipy.linalg as sla
 
 from .contact import ContactPattern
+from .cyclic_model import CyclicDiskModel
 from .errors import ROMError
 from .modal import dense_modes
 from .rom_assembly import blade_part
 from .rubin import RubinModel
-
-if TYPE_CHECKING:
-    from .cyclic import CyclicDiskModel
 
 __all__ = ["RitzSlot", "local_modes", "new_local", "append_local", "global_cc", "ritz", "residual_rows", "outputs"]
 

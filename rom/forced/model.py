@@ -168,7 +168,7 @@ def _times_shapes_t(A: np.ndarray, shapes: np.ndarray) -> np.ndarray:
     return (A.real @ shapes.T) + 1j * (A.imag @ shapes.T)
 
 
-def _blade_amplitudes(model: BladeModes, q: np.ndarray, form: str):
+def blade_amplitudes(model: BladeModes, q: np.ndarray, form: str):
     """f ↦ |response| of each blade j at its own frequency f[j] (Hz): shapes (n_blades,) → (n_blades,)."""
     wr2 = model.omega**2
     c = 2.0 * model.damping_ratio * model.omega

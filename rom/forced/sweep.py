@@ -8,7 +8,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import ROMError
-from .model import FORMS, BladeModes, _blade_amplitudes, engine_order_force, modal_forces, receptance
+from .model import FORMS, BladeModes, blade_amplitudes, engine_order_force, modal_forces, receptance
 
 __all__ = ["ForcedResponse", "forced_response", "GOLDEN_ITERATIONS"]
 
@@ -98,7 +98,7 @@ def _refine_peaks(model: BladeModes, q: np.ndarray, grid: np.ndarray, amp: np.nd
     a = grid[np.maximum(i - 1, 0)]
     b = grid[np.minimum(i + 1, grid.size - 1)]
 
-    ev = _blade_amplitudes(model, q, form)
+    ev = blade_amplitudes(model, q, form)
     c, d = b - _GOLD * (b - a), a + _GOLD * (b - a)
     fc, fd = ev(c), ev(d)
     for _ in range(GOLDEN_ITERATIONS):
