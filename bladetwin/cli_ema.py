@@ -85,11 +85,13 @@ def _print_modes(result, out=None) -> None:
     m = result.model
     print(f"{result.diagram.method}: {m.n_modes} modes in {result.diagram.band_hz[0]:g}-"
           f"{result.diagram.band_hz[1]:g} Hz", file=out)
-    print(f"{'mode':>4}  {'f [Hz]':>12}  {'zeta [%]':>9}  {'quality':>7}  {'dominance':>9}", file=out)
+    mq = m.mode_quality()
+    print(f"{'mode':>4}  {'f [Hz]':>12}  {'zeta [%]':>9}  {'quality':>7}  {'dominance':>9}  {'MPC':>5}  "
+          f"{'MPD [deg]':>9}  {'MCF':>5}", file=out)
     for k in range(m.n_modes):
         q = m.quality[k] if m.quality is not None else float("nan")
         print(f"{k + 1:>4}  {m.frequencies_hz[k]:>12.4f}  {100 * m.damping_ratio[k]:>9.4f}  {q:>7.2f}  "
-              f"{result.dominance[k]:>9.2f}", file=out)
+              f"{result.dominance[k]:>9.2f}  {mq.mpc[k]:>5.3f}  {mq.mpd_deg[k]:>9.2f}  {mq.mcf[k]:>5.3f}", file=out)
     if result.quality.size:
         print(f"FRF fit quality: min {np.min(result.quality):.4f}, mean {np.mean(result.quality):.4f}", file=out)
 
@@ -105,7 +107,8 @@ def _cmd_fit(args: argparse.Namespace) -> int:
     if args.plot:
         from ema.plots import plot_stabilization
 
-        fig = plot_stabilization(result.diagram, frf, selected_hz=result.model.frequencies_hz)
+        fig = plot_stabilization(result.diagram, frf, indicator=args.background,
+                                 selected_hz=result.model.frequencies_hz)
         atomic_savefig(fig, args.plot, dpi=120)
     if args.json:
         payload = result.as_dict()
@@ -180,7 +183,8 @@ def _cmd_disk(args: argparse.Namespace) -> int:
     from ema import disk_modes, read_frfs
 
     frf = read_frfs(_uff_files(args.dir), form=args.form, nonfinite=args.nonfinite)
-    _emit({"disk_modes": disk_modes(_fit(frf, args).model)}, args)
+    model = _fit(frf, args).model
+    _emit({"disk_modes": disk_modes(model).assign(**model.mode_quality().columns())}, args)
     return 0
 
 
@@ -193,7 +197,7 @@ def _cmd_assembly(args: argparse.Namespace) -> int:
     m = result.model
     table = pd.DataFrame(
         {"frequency_hz": m.frequencies_hz, "damping_ratio": m.damping_ratio, "dominance": result.dominance,
-         "quality": m.quality if m.quality is not None else np.nan},
+         "quality": m.quality if m.quality is not None else np.nan, **m.mode_quality().columns()},
         index=pd.Index(np.arange(1, m.n_modes + 1), name="mode"),
     )
     _emit({"assembly_modes": table}, args)
@@ -213,6 +217,10 @@ def register(subparsers) -> None:
     sel.add_argument("--auto", action="store_true", help="automatic selection (default)")
     sel.add_argument("--freqs", nargs="+", type=float, metavar="F", help="select modes near these frequencies [Hz]")
     p.add_argument("--plot", metavar="OUT.png", help="write the stabilization diagram")
+    p.add_argument("--background", choices=("mean", "cmif"), default="mean",
+                   help="curve under the --plot diagram: the mean |FRF| (default) or the CMIF, the squared "
+                        "singular values of the FRF matrix at each line (with several references, its curves "
+                        "separate close and repeated modes)")
     p.add_argument("--json", action="store_true", help="print JSON instead of a table")
     p.set_defaults(func=_cmd_fit)
 

@@ -15,7 +15,7 @@ from .stages import RunResult
 from .stages.bias import MATCH_WINDOW
 from .util import drawing_figures
 
-__all__ = ["ema_section", "ema_modes"]
+__all__ = ["ema_section", "ema_modes", "assembly_table"]
 
 
 def _stabilization(name: str, test, fit, frf, out: Path) -> dict:
@@ -72,8 +72,9 @@ def _ema_tables(res: RunResult, out: Path, notes: list[str]) -> list[dict]:
         except ValueError as exc:  # e.g. disk points that are not one per sector: the run's answer stands
             notes.append(f"Disk modes: nodal diameters not assigned ({exc}).")
         else:
-            ema.write_table(dm, out / "disk_modes.csv")
-            tables.append({"file": "disk_modes.csv", "caption": "Disk modes with their nodal diameters."})
+            ema.write_table(dm.assign(**disk[0].model.mode_quality().columns()), out / "disk_modes.csv")
+            tables.append({"file": "disk_modes.csv", "caption": "Disk modes with their nodal diameters. "
+                           + _COMPLEXITY})
     # Table 3: each joint's EMA frequencies matched one-to-one to the modes the dataset tracks (its blade
     # points are numbered per joint, so the tests share only the disk points and cannot be paired by MAC).
     mh = res.features.measured_hz
@@ -84,21 +85,37 @@ def _ema_tables(res: RunResult, out: Path, notes: list[str]) -> list[dict]:
                    f"{100 * MATCH_WINDOW:.0f} % (empty: not found)."})
     asm = [fit for t, fit in res.ema.values() if t.type == "assembly"]
     if asm:
-        m = asm[0].model
-        f_std = m.frequency_std_hz if m.frequency_std_hz is not None else np.full(m.n_modes, np.nan)
-        z_std = m.damping_std if m.damping_std is not None else np.full(m.n_modes, np.nan)
-        head = ["mode", "frequency (Hz)", "σ frequency (Hz)", "damping (%)", "σ damping (%)"]
-        write_csv(out / "assembly_modes.csv", head,
-                  [[k + 1, float(m.frequencies_hz[k]), blank(f_std[k]), float(100 * m.damping_ratio[k]),
-                    blank(100 * z_std[k])] for k in range(m.n_modes)])
-        tables.append({"file": "assembly_modes.csv", "caption": "Full-assembly modes found by the EMA, each with "
-                       "its standard deviation σ (the fit's linearised covariance, docs/ema.md; empty: its window "
-                       "is too short to tell)."})
+        tables.append(assembly_table(asm[0].model, out))
     return tables
 
 
+#: The caption's sentence on the complexity columns of every mode table.
+_COMPLEXITY = ("MPC (modal phase collinearity, 1 for a real mode), MPD (mean phase deviation from the shape's "
+               "best-fit line, 0° for a real mode) and MCF (mode complexity factor, 0 for a real mode, 1 for a "
+               "travelling one) judge whether a mode is physical (docs/ema.md).")
+
+
+def assembly_table(m: ema.ModalModel, out: Path) -> dict:
+    """``assembly_modes.csv``: the full-assembly modes with their standard deviations and complexity indicators.
+
+    Returns the report's table entry (file and caption).
+    """
+    f_std = m.frequency_std_hz if m.frequency_std_hz is not None else np.full(m.n_modes, np.nan)
+    z_std = m.damping_std if m.damping_std is not None else np.full(m.n_modes, np.nan)
+    mq = m.mode_quality()
+    head = ["mode", "frequency (Hz)", "σ frequency (Hz)", "damping (%)", "σ damping (%)", "MPC", "MPD (°)", "MCF"]
+    write_csv(out / "assembly_modes.csv", head,
+              [[k + 1, float(m.frequencies_hz[k]), blank(f_std[k]), float(100 * m.damping_ratio[k]),
+                blank(100 * z_std[k]), blank(mq.mpc[k]), blank(mq.mpd_deg[k]), blank(mq.mcf[k])]
+               for k in range(m.n_modes)])
+    return {"file": "assembly_modes.csv", "caption": "Full-assembly modes found by the EMA, each with its standard "
+            "deviation σ (the fit's linearised covariance, docs/ema.md; empty: its window is too short to tell). "
+            + _COMPLEXITY}
+
+
 def ema_modes(res: RunResult) -> dict:
-    """summary.json's ``ema``: per test, ``n_modes`` and its ``modes`` (Hz, damping ratio, standard deviations).
+    """summary.json's ``ema``: per test, ``n_modes`` and its ``modes`` (Hz, damping ratio, standard deviations,
+    MPC, MPD in degrees and MCF).
 
     The full-assembly test of a virtual campaign adds its scores against the truth
     (:func:`lab.judge.assembly_scores`: ``n_visible``, ``one_to_one_within_0p05pct``, ``mean_shape_mac``, …).

@@ -1,7 +1,8 @@
 """ema: experimental modal analysis front end (floor 1; imports neither rom, identify, lab nor bladetwin).
 
 UFF I/O, FRF sets, pole estimation (LSCF, LSRF, local fitting), stabilization diagrams, pole selection,
-mode shapes and residues (LSFD), MAC and mode pairing, campaign tables. Plots live in ``ema.plots``.
+mode shapes and residues (LSFD), MAC and mode pairing, mode complexity (MPC, MPD, MCF), campaign tables.
+Plots live in ``ema.plots``.
 """
 
 from .campaign import blade_deltas, disk_modes, joint_frequencies, nodal_diameters, write_table
@@ -11,6 +12,7 @@ from .frf import FRFSet, Nodes, UnitSystem, merge_frfsets
 from .lsfd import synthesize
 from .mac import ModePairing, mac, pair_by_frequency, pair_modes
 from .modal import ModalModel
+from .mode_quality import ModeQuality, mode_quality
 from .order import fit_auto_order
 from .picks import Picks, fit_with_picks, load_picks, save_picks
 from .settings import FitSettings
@@ -26,6 +28,7 @@ __all__ = [
     "FitSettings",
     "ModalModel",
     "ModePairing",
+    "ModeQuality",
     "Nodes",
     "Picks",
     "StabilityCriteria",
@@ -40,6 +43,7 @@ __all__ = [
     "load_picks",
     "mac",
     "merge_frfsets",
+    "mode_quality",
     "nodal_diameters",
     "pair_by_frequency",
     "pair_modes",

@@ -7,6 +7,8 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from .frf import DOF, FRF_FORMS, check_dof
+from .mode_quality import ModeQuality
+from .mode_quality import mode_quality as _mode_quality
 
 __all__ = ["ModalModel", "pole_from_modal", "modal_from_pole"]
 
@@ -176,7 +178,9 @@ class ModalModel:
 
     def as_records(self) -> list[dict]:
         """One dict per mode: ``frequency_hz``, ``damping_ratio``, and ``quality`` and the standard deviations
-        (``frequency_std_hz``, ``damping_std``) when known (JSON-ready)."""
+        (``frequency_std_hz``, ``damping_std``) when known, then the shape's complexity indicators ``mpc``,
+        ``mpd_deg`` and ``mcf`` (:func:`ema.mode_quality.mode_quality`; NaN for an all-zero shape) (JSON-ready)."""
+        mq = _mode_quality(self.shapes)
         out = []
         for m in range(self.n_modes):
             rec = {"frequency_hz": float(self.frequencies_hz[m]), "damping_ratio": float(self.damping_ratio[m])}
@@ -185,5 +189,10 @@ class ModalModel:
             if self.frequency_std_hz is not None:
                 rec["frequency_std_hz"] = float(self.frequency_std_hz[m])
                 rec["damping_std"] = float(self.damping_std[m]) if self.damping_std is not None else None
+            rec |= {"mpc": float(mq.mpc[m]), "mpd_deg": float(mq.mpd_deg[m]), "mcf": float(mq.mcf[m])}
             out.append(rec)
         return out
+
+    def mode_quality(self) -> ModeQuality:
+        """MPC, MPD (°) and MCF of every shape: :func:`ema.mode_quality.mode_quality` of ``shapes``."""
+        return _mode_quality(self.shapes)
