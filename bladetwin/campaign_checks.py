@@ -19,14 +19,14 @@ from ema.numbering import BLADE_NODE_STRIDE
 
 from .campaign import Campaign, CampaignError, TestEntry
 
-__all__ = ["check_files", "check_numbering"]
+__all__ = ["check_files", "check_numbering", "film_identity"]
 
 _JOINT_IN_NAME = re.compile(r"joint[_\- ]?0*(\d+)", re.IGNORECASE)
 _FLANK_IN_NAME = re.compile(r"[_\-]([LR])(?:[_\-.]|$)")
 _OFF = "(set check_numbering = false on this test if the lab numbers its points otherwise)"
 
 
-def _film_identity(path: Path) -> tuple[int | None, str | None, str]:
+def film_identity(path: Path) -> tuple[int | None, str | None, str]:
     """(joint, flank, where from) a film image says it shows: its PNG text fields, else its file name."""
     from PIL import Image, UnidentifiedImageError
 
@@ -145,7 +145,7 @@ def check_files(campaign: Campaign, say=lambda msg: None) -> None:
             ema.load_picks(t.picks)
     _check_consistency(campaign, facts, manifest)
     for f in campaign.films:
-        joint, flank, source = _film_identity(f.file)
+        joint, flank, source = film_identity(f.file)
         for what, said, given in (("joint", joint, f.joint), ("flank", flank, f.flank)):
             if said is not None and said != given:
                 raise CampaignError(f"{manifest} films: {f.file.name} is a film of {what} {said} ({source}), but the "
