@@ -25,14 +25,17 @@ from rom.fileio import atomic_path
 REPO = Path(__file__).resolve().parents[1]
 
 
-def _run(campaign: str | None, out: Path, cache: Path, workers: int) -> tuple[float, dict]:
-    """Wall seconds of one `bladetwin run`, and its summary.json."""
+def _run(campaign: str | None, out: Path, cache: Path, workers: int, log: str | None = None) -> tuple[float, dict]:
+    """Wall seconds of one `bladetwin run`, and its summary.json; its progress (stderr) kept in ``log``."""
     cmd = [sys.executable, "-m", "bladetwin", "run", *([campaign] if campaign else []), "--out", str(out),
            "--workers", str(workers)]
     t = time.perf_counter()
     proc = subprocess.run(cmd, cwd=REPO, env={**os.environ, "BLADETWIN_CACHE": str(cache), "MPLBACKEND": "Agg"},
                           capture_output=True, text=True)
     seconds = time.perf_counter() - t
+    if log:
+        with atomic_path(log) as tmp_path:
+            tmp_path.write_text(proc.stderr)
     if proc.returncode != 0:
         raise SystemExit(f"bladetwin run failed (exit {proc.returncode}): {proc.stderr.strip()[-2000:]}")
     summaries = sorted(out.rglob("summary.json"))
@@ -46,10 +49,11 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--json", default=None, metavar="PATH", help="also write the figures to this JSON file")
     ap.add_argument("--summary", default=None, metavar="PATH",
                     help="also keep the cold run's summary.json here (e.g. docs/results/summary.json)")
+    ap.add_argument("--log", default=None, metavar="PATH", help="also keep the cold run's progress messages here")
     args = ap.parse_args(argv)
     with tempfile.TemporaryDirectory(prefix="bladetwin-cold-") as tmp:
         cache = Path(tmp) / "cache"
-        cold_s, cold = _run(args.campaign, Path(tmp) / "cold", cache, args.workers)
+        cold_s, cold = _run(args.campaign, Path(tmp) / "cold", cache, args.workers, args.log)
         warm_s, warm = _run(args.campaign, Path(tmp) / "warm", cache, args.workers)
     figures = {
         "campaign": cold["campaign"], "workers": args.workers, "cpu_count": os.cpu_count(),
