@@ -1,7 +1,8 @@
 """The index page of a run on several campaigns: their Table 8 and every joint's identified contact side by side.
 
 Like :mod:`bladetwin.report`, it only reads what the run wrote (each campaign's ``summary.json``) and computes
-nothing. Labs re-test one disk after each re-assembly; this page shows how the joints seated each time.
+nothing; its numbers follow the report's one formatting rule (:mod:`bladetwin.report_cells`).
+Labs re-test one disk after each re-assembly; this page shows how the joints seated each time.
 """
 
 from __future__ import annotations
@@ -10,6 +11,8 @@ import json
 import os
 from pathlib import Path
 
+from .report_cells import UNAVAILABLE, format_column
+from .report_tables import FOLD_ROWS
 from .util import atomic_write_text
 
 __all__ = ["INDEX_NAME", "index_rows", "render_index"]
@@ -18,25 +21,36 @@ INDEX_NAME = "index.html"
 _CASES = (("A", "Case A"), ("B", "Case B"), ("B_no_bias", "Case B, no bias"), ("C", "Case C"))
 
 
+def _column(values: list, percent: bool) -> list[str]:
+    """A column of the page by the report's one formatting rule; "unavailable" where a case was not computed."""
+    texts = format_column(values, percent=percent)
+    return [UNAVAILABLE if v is None else t for v, t in zip(values, texts, strict=True)]
+
+
 def index_rows(summaries: list[dict]) -> dict:
-    """Table 8 rows (case → cells per campaign) and joint rows (joint → areas per campaign) of the summaries."""
-    table8 = []
-    for key, label in (*_CASES, ("baseline_B", "baseline (as Case B)")):
-        cells = []
-        for s in summaries:
-            cases = s["cases"]
-            v = cases["baseline"]["B"] if key == "baseline_B" else cases.get(key)
-            cells += ["unavailable"] * 2 if v is None else [f"{v['mean_abs_df_pct']:.3f}", f"{v['mean_mac']:.3f}"]
-        table8.append([label, *cells])
+    """Table 8 rows (case → cells per campaign) and joint rows (joint → areas per campaign) of the summaries.
+
+    Numbers follow :func:`bladetwin.report_cells.format_column`, one number of decimals down each column, as in
+    the campaigns' reports.
+    """
+    keys = [*_CASES, ("baseline_B", "baseline (as Case B)")]
+    columns = []
+    for s in summaries:
+        cases = s["cases"]
+        found = [cases["baseline"]["B"] if key == "baseline_B" else cases.get(key) for key, _ in keys]
+        columns.append(_column([None if v is None else v["mean_abs_df_pct"] for v in found], percent=True))
+        columns.append(_column([None if v is None else v["mean_mac"] for v in found], percent=False))
+    table8 = [[label, *(col[i] for col in columns)] for i, (_, label) in enumerate(keys)]
     n = max(s["n_blades"] for s in summaries)
-    joints = []
-    for j in range(1, n + 1):
-        cells = []
-        for s in summaries:
-            row = next((r for r in s["joints"] if r["joint"] == j), None)
-            cells += ["—"] * 3 if row is None else [row["source"], f"{row['area_fraction_L_pct']:.1f}",
-                                                    f"{row['area_fraction_R_pct']:.1f}"]
-        joints.append([j, *cells])
+    columns = []
+    for s in summaries:
+        rows = [next((r for r in s["joints"] if r["joint"] == j), None) for j in range(1, n + 1)]
+        columns.append(["—" if r is None else r["source"] for r in rows])
+        for side in ("L", "R"):
+            values = [None if r is None else r[f"area_fraction_{side}_pct"] for r in rows]
+            columns.append(["—" if v is None else t for v, t in zip(values, format_column(values, percent=True),
+                                                                   strict=True)])
+    joints = [[j, *(col[j - 1] for col in columns)] for j in range(1, n + 1)]
     return {"table8": table8, "joints": joints}
 
 
@@ -49,5 +63,5 @@ def render_index(root: str | os.PathLike, outs: list[Path]) -> Path:
     env = jinja2.Environment(loader=jinja2.PackageLoader("bladetwin", "templates"), autoescape=True)
     links = [{"name": s["campaign"], "href": os.path.relpath(Path(o) / s.get("report", "report.html"), root),
               "known": s["known_joints"], "kind": s.get("kind", "")} for s, o in zip(summaries, outs, strict=True)]
-    html = env.get_template("index.html.j2").render(campaigns=links, **index_rows(summaries))
+    html = env.get_template("index.html.j2").render(campaigns=links, fold_rows=FOLD_ROWS, **index_rows(summaries))
     return atomic_write_text(root / INDEX_NAME, html)

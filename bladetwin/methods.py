@@ -61,6 +61,13 @@ def _width_ratio(posts: dict, widths: np.ndarray) -> dict:
     return dict(zip(WIDTH_NAMES, (float(r) for r in ratio), strict=True))
 
 
+def _area_width(posts: dict) -> float | None:
+    """The median width (pp) of the posterior's 90 % area intervals over the joints and flanks: how sure the
+    answer is, with or without a reference (the report's first screen quotes it)."""
+    widths = [float(hi - lo) for p in posts.values() for lo, hi in np.asarray(p.area_pct_ci90)]
+    return float(np.median(widths)) if widths else None
+
+
 def _cases(res, method: str) -> dict:
     c = res.cases
     if method == "knn":
@@ -86,6 +93,7 @@ def methods_summary(res) -> dict:
             # what the data pin down needs no reference: every run reports it
             widths = prior_intervals(res.posterior["prior"], flank_coordinates(res.bd))
             entry["width_ratio"] = {name: _width_ratio(res.posterior.get(name, {}), widths) for name in inputs}
+            entry["area_ci90_median_width_pp"] = {name: _area_width(res.posterior.get(name, {})) for name in inputs}
             s = res.posterior["surrogate"]
             entry["surrogate"] = {"error_pct": s.error_pct.tolist(), "max_error_pct": s.max_error_pct.tolist(),
                                   "n_train": s.n_train, "n_test": s.n_test}

@@ -37,6 +37,7 @@ from .run_figures import (
     plot_contact_probability,
     plot_d1b_features,
     plot_joint_patterns,
+    plot_posterior_frequencies,
 )
 from .stages import PAPER_TABLE8, RunResult
 from .user_warnings import emit, recording, unique
@@ -233,8 +234,11 @@ def _posterior_section(res: RunResult, out: Path, methods: dict) -> list[dict]:
     fig = save_figure(lambda: plot_contact_probability([posts[j].probability for j in joints], labels, columns),
                out / "contact_probability.png")
     write_csv(out / "posterior_contact.csv", POSTERIOR_HEADER, [[blank(v) for v in r] for r in posterior_rows(res)])
-    write_csv(out / "posterior_frequencies.csv", FREQUENCY_HEADER,
-         [[blank(v) for v in r] for r in posterior_frequency_rows(res)])
+    freq_rows = posterior_frequency_rows(res)
+    write_csv(out / "posterior_frequencies.csv", FREQUENCY_HEADER, [[blank(v) for v in r] for r in freq_rows])
+    # the frequency table runs to (joints × tracked modes) rows: a figure shows it, the report folds the table
+    freq_fig = save_figure(lambda: plot_posterior_frequencies(np.array(freq_rows, float).reshape(-1, 7)),
+                           out / "posterior_frequencies.png")
     s = res.posterior["surrogate"]
     m = methods.get("posterior", {})
     text = ["Each unfilmed joint's contact as a posterior over a continuous pattern family (the films' PCA and the "
@@ -261,12 +265,16 @@ def _posterior_section(res: RunResult, out: Path, methods: dict) -> list[dict]:
     return [{"id": "posterior", "title": "Contact posterior: every unfilmed joint with its confidence",
              "text": text,
              "figures": [{"file": fig, "caption": "Posterior probability of contact at each node (left pair), beside "
-                          "the k-NN's answer and the reference pattern where they exist."}],
+                          "the k-NN's answer and the reference pattern where they exist."},
+                         {"file": freq_fig, "caption": "Each unfilmed joint's tracked disk–one-blade frequencies "
+                          "against its test (0: the test's frequency, bias removed): the posterior's answer and the "
+                          "90 % interval of the ROM's frequency over the posterior (model error not included)."}],
              "tables": [{"file": "posterior_contact.csv", "caption": "The posterior's answer per unfilmed joint: "
                          "area fractions and centroids with their 90 % intervals (experimental input)."},
-                        {"file": "posterior_frequencies.csv", "caption": "Each unfilmed joint's tracked disk–one-blade "
-                         "frequencies: the test's (bias removed), the posterior's answer and the 90 % interval of "
-                         "the ROM's frequency over the posterior (model error not included)."}]}]
+                        {"file": "posterior_frequencies.csv", "figure": freq_fig,
+                         "caption": "Each unfilmed joint's tracked disk–one-blade frequencies: the test's (bias "
+                         "removed), the posterior's answer and the 90 % interval of the ROM's frequency over the "
+                         "posterior (model error not included)."}]}]
 
 
 def write_outputs(res: RunResult, out: Path, *, command: str = "bladetwin run", figures: bool = True) -> dict:

@@ -93,9 +93,11 @@ def rom_section(res: RunResult, out: Path, rom: dict | None) -> list[dict]:
     tables = [{"file": write_csv(out / "rom_cases.csv", CASE_HEADER, cells(case_rows(rom))),
                "caption": "Cases A, B and C with the paper's ROM and with the updated ROM."},
               {"file": write_csv(out / "rom_corrections.csv", CORRECTION_HEADER, cells(correction_rows(res))),
-               "caption": "Each blade's in-situ corrections and its disk-one-blade residuals, both ROMs."},
+               "caption": "Each blade's in-situ corrections and its disk-one-blade residuals, both ROMs.",
+               "figure": fig},  # the figure's left panel shows it, its right panel the families
               {"file": write_csv(out / "rom_families.csv", FAMILY_HEADER, family_rows(res.validation.families)),
-               "caption": "Family by family: frequency error, MAC and subspace correlation (principal angles)."}]
+               "caption": "Family by family: frequency error, MAC and subspace correlation (principal angles).",
+               "figure": fig}]
     p = rom["updated"]["parameters"]
     k = p["contact_stiffness"]
     stiff = ("rigid ties (no filmed joint with a disk-one-blade test)" if k is None else

@@ -7,8 +7,9 @@ and table to its file beside the report.
 
 The layout lives in ``bladetwin/templates/report.html.j2`` (Jinja2, autoescaped). This module checks the
 folder, hands ``summary.json`` to :mod:`bladetwin.report_rows`, which turns it into plain rows and cells
-(formatting numbers, choosing heat-map colours), and gives those to the template, so the template holds
-markup only.
+(numbers by the one formatting rule of :mod:`bladetwin.report_cells`, heat-map colours, the first screen's
+words from :mod:`bladetwin.report_answer`), and gives those to the template, so the template holds markup only.
+The page's ``@media print`` stylesheet prints it without cut tables or figures, every fold open.
 """
 
 from __future__ import annotations

@@ -5,7 +5,7 @@ from __future__ import annotations
 import math
 from typing import Any
 
-from .report_cells import MISSING, UNAVAILABLE, as_float, as_list, format_number
+from .report_cells import MISSING, UNAVAILABLE, as_float, as_list, format_column, format_number
 
 __all__ = ["header_items", "fact_items", "timing_rows"]
 
@@ -37,12 +37,12 @@ def timing_rows(summary: dict) -> list[tuple[str, str, str, bool]]:
     """Each stage group's time: (label, seconds, as read by a person, whether it is the total)."""
     raw = summary.get("timings_s") if isinstance(summary.get("timings_s"), dict) else {}
     items = [(k, v) for k, v in raw.items() if k != "total"] + ([("total", raw["total"])] if "total" in raw else [])
+    seconds = format_column([as_float(v) for _, v in items])
     out = []
-    for key, v in items:
+    for (key, v), secs in zip(items, seconds, strict=True):
         x = as_float(v)
         label = _TIMING_LABELS.get(key, str(key))
-        out.append((label, MISSING if x is None else f"{x:.1f}", MISSING if x is None else _duration(x),
-                    key == "total"))
+        out.append((label, MISSING if x is None else secs, MISSING if x is None else _duration(x), key == "total"))
     return out
 
 
@@ -59,7 +59,8 @@ def fact_items(summary: dict) -> list[tuple[str, str]]:
     step1 = summary.get("step1")
     if isinstance(step1, dict) and "max_abs_eps_pct" in step1:
         v = step1["max_abs_eps_pct"]
-        text = UNAVAILABLE if v is None else f"{format_number(v)} % (target ≤ 50 %: the nearest δ grid value)"
+        text = UNAVAILABLE if v is None else \
+            f"{format_number(v, percent=True)} % (target ≤ 50 %: the nearest δ grid value)"
         facts.append(("Largest step-1 grid error |ε|", text))
     bias = summary.get("bias")
     if isinstance(bias, dict):

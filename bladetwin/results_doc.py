@@ -2,7 +2,9 @@
 
 ``make results`` copies the last run's ``summary.json`` into ``docs/results/`` and calls :func:`main`;
 ``make bench-results`` refreshes the benchmarks' files there (``bench_*.json``, each written by a benchmark's
-``--json``). Every figure in the generated text is a JSON value, rounded for display. In ``docs/results.md`` the
+``--json``). Every figure in the generated text is a JSON value, rounded for display by the report's one rule
+(:mod:`bladetwin.report_cells`: about 3 significant digits, percentages at most 2 decimals, one number of decimals
+down a column, or along a row where a row holds one quantity). In ``docs/results.md`` the
 row that shows it names its file and key (``source`` column), so a reader (and
 ``tests/pipeline/test_results_doc.py``) can check it; the README's blocks are the same rows without that column.
 Nothing here computes a figure: it only formats what the run and the benchmarks measured.
@@ -17,6 +19,8 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from rom.fileio import atomic_path
+
+from .report_cells import format_column, format_number
 
 __all__ = ["Row", "lookup", "table8_rows", "contact_rows", "rom_rows", "performance_rows", "width_rows",
            "render_results", "readme_blocks", "update_readme", "main"]
@@ -61,12 +65,11 @@ class Row:
     command: str = ""
 
 
-def _fmt(value, spec: str) -> str:
-    if value is None:
-        return _MISSING
-    if isinstance(value, bool):
-        return "yes" if value else "no"
-    return format(value, spec)
+def _shown(values: list, percent: bool) -> list[str]:
+    """``values`` as the README prints them: the report's one rule (:func:`bladetwin.report_cells.format_column`),
+    one number of decimals for all of them; "not measured" where a value is absent."""
+    texts = format_column(values, percent=percent)
+    return [_MISSING if v is None else t for v, t in zip(values, texts, strict=True)]
 
 
 def _value(docs: dict, f: str, key: str):
@@ -78,9 +81,30 @@ def _value(docs: dict, f: str, key: str):
 
 
 def _row(label: str, docs: dict, figures: list[tuple[str, str, str]]) -> Row:
-    """``figures``: (file name, key, format spec) of each cell; a key ``a / b`` is the ratio of two keys."""
-    cells = tuple(_fmt(_value(docs, f, k), spec) for f, k, spec in figures)
-    return Row(label, cells, tuple(f"{f}:{k}" for f, k, _ in figures))
+    """One row formatted along itself (a row that holds one quantity). ``figures``: (file name, key, kind) of each
+    cell, ``kind`` "pct" for a percentage (or percentage points); a key ``a / b`` is the ratio of two keys."""
+    values = [_value(docs, f, k) for f, k, _ in figures]
+    cells = _shown(values, percent=any(kind == "pct" for _, _, kind in figures))
+    return Row(label, tuple(cells), tuple(f"{f}:{k}" for f, k, _ in figures))
+
+
+def _by_column(rows: list[tuple[str, list[tuple[str, str, str]]]], docs: dict) -> list[Row]:
+    """Rows whose columns each hold one quantity, formatted down each column: (label, figures) per row, the
+    figures' kinds (see :func:`_row`) those of the columns."""
+    values = [[_value(docs, f, k) for f, k, _ in figures] for _, figures in rows]
+    width = max((len(v) for v in values), default=0)
+    columns = []
+    for c in range(width):
+        kind = next(fig[c][2] for _, fig in rows if len(fig) > c)
+        column = [v[c] if len(v) > c else None for v in values]
+        columns.append(_shown(column, percent=kind == "pct"))
+    return [Row(label, tuple(columns[c][i] for c in range(len(figures))), tuple(f"{f}:{k}" for f, k, _ in figures))
+            for i, (label, figures) in enumerate(rows)]
+
+
+def _cells(docs: dict, figures: list[tuple[str, str]]) -> tuple[str, ...]:
+    """Cells each formatted alone (the performance table: each row mixes seconds, ratios and errors)."""
+    return tuple(_MISSING if (v := _value(docs, f, k)) is None else format_number(v) for f, k in figures)
 
 
 _CASES = (("Case A", "A"), ("Case B", "B"), ("Case B, no bias correction", "B_no_bias"), ("Case C", "C"),
@@ -92,22 +116,21 @@ def table8_rows(docs: dict) -> list[Row]:
     """Table 8 of the paper from ``summary.json``: mean |Δf| (%), mean MAC and paired modes per case."""
     rows = []
     for label, key in _CASES:
-        figures = [("summary.json", f"cases.{key}.mean_abs_df_pct", ".3f"),
-                   ("summary.json", f"cases.{key}.mean_mac", ".3f"), ("summary.json", f"cases.{key}.n_modes", "d")]
+        figures = [("summary.json", f"cases.{key}.mean_abs_df_pct", "pct"),
+                   ("summary.json", f"cases.{key}.mean_mac", "num"), ("summary.json", f"cases.{key}.n_modes", "int")]
         if "." not in key and "_" not in key:
-            figures += [("summary.json", f"paper_table8.{key}.mean_abs_df_pct", ".2f"),
-                        ("summary.json", f"paper_table8.{key}.mean_mac", ".2f")]
-        row = _row(label, docs, figures)
-        if row.cells[0] != _MISSING:
-            rows.append(row)
-    return rows
+            figures += [("summary.json", f"paper_table8.{key}.mean_abs_df_pct", "pct"),
+                        ("summary.json", f"paper_table8.{key}.mean_mac", "num")]
+        if _value(docs, "summary.json", f"cases.{key}.mean_abs_df_pct") is not None:
+            rows.append((label, figures))
+    return _by_column(rows, docs)
 
 
-_METHOD_FIGURES = (("mean area-fraction error (pp)", "area_error_pp", ".2f"),
-                   ("mean centroid distance (mm)", "centroid_distance_mm", ".2f"),
-                   ("node agreement", "node_agreement", ".3f"),
-                   ("true area inside the 90 % interval (share of flanks)", "ci90_coverage_area", ".2f"),
-                   ("median 90 % interval width (pp)", "ci90_median_width_pp", ".1f"))
+_METHOD_FIGURES = (("mean area-fraction error (pp)", "area_error_pp", "pct"),
+                   ("mean centroid distance (mm)", "centroid_distance_mm", "num"),
+                   ("node agreement", "node_agreement", "num"),
+                   ("true area inside the 90 % interval (share of flanks)", "ci90_coverage_area", "num"),
+                   ("median 90 % interval width (pp)", "ci90_median_width_pp", "pct"))
 
 
 def contact_rows(docs: dict) -> list[Row]:
@@ -134,13 +157,11 @@ def rom_rows(docs: dict) -> list[Row]:
     rows = []
     for case in ("A", "B", "B_baseline", "C"):
         label = "Case B, baseline pattern (control)" if case == "B_baseline" else f"Case {case}"
-        row = _row(label, docs, [("summary.json", f"rom.{kind}.cases.{case}.{key}", spec)
-                                          for kind in ("paper", "updated")
-                                          for key, spec in (("mean_abs_df_pct", ".3f"), ("mean_mac", ".3f"),
-                                                            ("n_modes", "d"))])
-        if row.cells[3] != _MISSING:
-            rows.append(row)
-    return rows
+        figures = [("summary.json", f"rom.{kind}.cases.{case}.{key}", spec) for kind in ("paper", "updated")
+                   for key, spec in (("mean_abs_df_pct", "pct"), ("mean_mac", "num"), ("n_modes", "int"))]
+        if _value(docs, "summary.json", f"rom.updated.cases.{case}.mean_abs_df_pct") is not None:
+            rows.append((label, figures))
+    return _by_column(rows, docs)
 
 
 _WIDTHS = (("contact area, flank L", "area L"), ("contact area, flank R", "area R"),
@@ -151,13 +172,10 @@ _WIDTHS = (("contact area, flank L", "area L"), ("contact area, flank R", "area 
 def width_rows(docs: dict) -> list[Row]:
     """The contact posterior's 90 % interval width over the prior's, per quantity and input (``summary.json`` →
     ``methods.posterior.width_ratio``): how much the disk–one-blade tests narrow it (1: nothing)."""
-    rows = []
-    for label, key in _WIDTHS:
-        row = _row(label, docs, [("summary.json", f"methods.posterior.width_ratio.{inp}.{key}", ".2f")
-                                 for inp in ("numerical", "experimental")])
-        if any(c != _MISSING for c in row.cells):
-            rows.append(row)
-    return rows
+    rows = [(label, [("summary.json", f"methods.posterior.width_ratio.{inp}.{key}", "num")
+                     for inp in ("numerical", "experimental")]) for label, key in _WIDTHS]
+    rows = [r for r in rows if any(_value(docs, f, k) is not None for f, k, _ in r[1])]
+    return _by_column(rows, docs)
 
 
 _D1B, _FULL = "results[step=rom_d1b]", "results[step=rom_full_cyclic]"
@@ -165,62 +183,60 @@ _CYC, _FE_FULL = "results[step=rom_disk_cyclic]", "results[step=fe_full]"
 #: (label, command, file, [(key, format)] of the figure, the reference measured in the same run, their ratio).
 _PERFORMANCE = (
     ("`bladetwin run`, bundled campaign, empty store (s); reference: the same run, every stage stored",
-     "python benchmarks/run_cold.py", "bench_run.json", [("cold_s", ".0f"), ("warm_s", ".1f"), ("ratio", ".1f")]),
+     "python benchmarks/run_cold.py", "bench_run.json", ["cold_s", "warm_s", "ratio"]),
     ("disk–one-blade ROM solve, 10 modes (s); reference: FE solve", "python benchmarks/rom.py", "bench_rom.json",
-     [(f"{_D1B}.median_solve_s", ".3f"), ("results[step=fe_d1b].seconds", ".2f"),
-      (f"{_D1B}.median_solve_s / results[step=fe_d1b].seconds", ".3f")]),
+     [f"{_D1B}.median_solve_s", "results[step=fe_d1b].seconds",
+      f"{_D1B}.median_solve_s / results[step=fe_d1b].seconds"]),
     ("full ROM, 3N modes, cyclic CB disk, first solve in a fresh process (s); reference: FE solve",
      "python benchmarks/rom.py", "bench_rom.json",
-     [(f"{_FULL}.seconds", ".1f"), (f"{_FE_FULL}.seconds", ".1f"), (f"{_FULL}.seconds / {_FE_FULL}.seconds", ".2f")]),
+     [f"{_FULL}.seconds", f"{_FE_FULL}.seconds", f"{_FULL}.seconds / {_FE_FULL}.seconds"]),
     ("updated ROM (blades on contact springs, δ + ε): disk–one-blade solve (s); reference: paper's ROM",
      "python benchmarks/rom.py", "bench_rom.json",
-     [(f"{_D1B}.updated_solve_s", ".3f"), (f"{_D1B}.median_solve_s", ".3f"),
-      (f"{_D1B}.updated_solve_s / {_D1B}.median_solve_s", ".2f")]),
+     [f"{_D1B}.updated_solve_s", f"{_D1B}.median_solve_s",
+      f"{_D1B}.updated_solve_s / {_D1B}.median_solve_s"]),
     ("updated ROM: full assembly, 3N modes, cyclic CB disk, solved again in that process (s); reference: "
      "paper's ROM, likewise", "python benchmarks/rom.py",
-     "bench_rom.json", [(f"{_FULL}.updated_seconds", ".1f"), (f"{_FULL}.paper_repeat_seconds", ".1f"),
-                        (f"{_FULL}.updated_seconds / {_FULL}.paper_repeat_seconds", ".2f")]),
+     "bench_rom.json", [f"{_FULL}.updated_seconds", f"{_FULL}.paper_repeat_seconds",
+                        f"{_FULL}.updated_seconds / {_FULL}.paper_repeat_seconds"]),
     ("full ROM vs FE, 3N modes: max relative frequency error, min MAC", "python benchmarks/rom.py",
-     "bench_rom.json", [(f"{_FULL}.max_rel_err", ".1e"), (f"{_FULL}.min_mac", ".5f")]),
+     "bench_rom.json", [f"{_FULL}.max_rel_err", f"{_FULL}.min_mac"]),
     ("full ROM peak memory (GB); reference: FE solve", "python benchmarks/rom.py", "bench_rom.json",
-     [(f"{_FULL}.peak_gb", ".2f"), (f"{_FE_FULL}.peak_gb", ".2f"), (f"{_FULL}.peak_gb / {_FE_FULL}.peak_gb", ".2f")]),
+     [f"{_FULL}.peak_gb", f"{_FE_FULL}.peak_gb", f"{_FULL}.peak_gb / {_FE_FULL}.peak_gb"]),
     ("cyclic CB disk build, once per disk (s); reference: FE free-disk solve", "python benchmarks/rom.py",
-     "bench_rom.json", [(f"{_CYC}.seconds", ".1f"), ("results[step=fe_disk].seconds", ".1f"),
-                        (f"{_CYC}.seconds / results[step=fe_disk].seconds", ".2f")]),
+     "bench_rom.json", [f"{_CYC}.seconds", "results[step=fe_disk].seconds",
+                        f"{_CYC}.seconds / results[step=fe_disk].seconds"]),
     ("contact posterior of every unfilmed joint, experimental input (s); reference: the k-NN and its refinement",
-     "python benchmarks/posterior.py", "bench_posterior.json", [("posterior_s", ".0f"), ("knn_s", ".0f"),
-                                                                 ("ratio", ".1f")]),
+     "python benchmarks/posterior.py", "bench_posterior.json", ["posterior_s", "knn_s", "ratio"]),
     ("EMA, LSCF, 54 outputs × 6400 lines, 100 orders (s); reference: sdypy-EMA", "python benchmarks/ema.py",
-     "bench_ema.json", [("lscf_s", ".2f"), ("sdypy_lscf_s", ".2f"), ("lscf_ratio", ".2f")]),
+     "bench_ema.json", ["lscf_s", "sdypy_lscf_s", "lscf_ratio"]),
     ("EMA of the bundled full-assembly test with dense families resolved (s); reference: the ordinary fit",
      "python benchmarks/ema_families.py", "bench_ema_families.json",
-     [("families.time_s", ".1f"), ("ordinary.time_s", ".1f"), ("families.time_s / ordinary.time_s", ".2f")]),
+     ["families.time_s", "ordinary.time_s", "families.time_s / ordinary.time_s"]),
     ("full-assembly EMA: share of the truth's visible modes with a one-to-one mode within 0.05 %; reference: the "
      "ordinary fit", "python benchmarks/ema_families.py", "bench_ema_families.json",
-     [("families.one_to_one_within_0p05pct", ".2f"), ("ordinary.one_to_one_within_0p05pct", ".2f")]),
+     ["families.one_to_one_within_0p05pct", "ordinary.one_to_one_within_0p05pct"]),
     ("full-assembly EMA: mean MAC of the paired shapes against the exact shapes; reference: the ordinary fit",
      "python benchmarks/ema_families.py", "bench_ema_families.json",
-     [("families.mean_shape_mac", ".2f"), ("ordinary.mean_shape_mac", ".2f")]),
+     ["families.mean_shape_mac", "ordinary.mean_shape_mac"]),
     ("full-assembly EMA: mean shape MAC that the test's noise allows (Cramér–Rao, every other mode known); "
      "reference: the same with the entries below 3 σ zeroed", "python benchmarks/ema_families.py",
-     "bench_ema_families.json", [("shape_mac_bound", ".3f"), ("shape_mac_bound_zeroed_below_3sd", ".3f")]),
+     "bench_ema_families.json", ["shape_mac_bound", "shape_mac_bound_zeroed_below_3sd"]),
     ("full-assembly EMA: share of the found modes whose truth lies within ± 2 standard deviations; reference: the "
      "ordinary fit", "python benchmarks/ema_families.py", "bench_ema_families.json",
-     [("families.within_2sd", ".2f"), ("ordinary.within_2sd", ".2f")]),
+     ["families.within_2sd", "ordinary.within_2sd"]),
     ("dataset by reanalysis (s); reference: direct solves, extrapolated", "python benchmarks/dataset.py",
-     "bench_dataset.json", [("build_s", ".1f"), ("direct_s_extrapolated", ".0f"),
-                            ("build_s / direct_s_extrapolated", ".4f")]),
+     "bench_dataset.json", ["build_s", "direct_s_extrapolated", "build_s / direct_s_extrapolated"]),
     ("dataset, max relative frequency error vs direct solves", "python benchmarks/dataset.py", "bench_dataset.json",
-     [("max_rel_err", ".1e")]),
+     ["max_rel_err"]),
 )
 
 
 def performance_rows(docs: dict) -> list[Row]:
     """One row per benchmark figure: figure, the reference measured in the same run, and their ratio."""
     rows = []
-    for label, command, f, figures in _PERFORMANCE:
-        row = _row(label, docs, [(f, k, spec) for k, spec in figures])
-        rows.append(Row(label, row.cells + ("",) * (3 - len(row.cells)), row.sources, command))
+    for label, command, f, keys in _PERFORMANCE:
+        cells = _cells(docs, [(f, k) for k in keys])
+        rows.append(Row(label, cells + ("",) * (3 - len(cells)), tuple(f"{f}:{k}" for k in keys), command))
     return rows
 
 
@@ -306,7 +322,7 @@ def render_results(docs: dict) -> str:
              "## The run these figures come from", "",
              f"- command: `{s.get('command', '?')}`; settings: `{json.dumps(s.get('settings', {}))}`",
              f"- stage nodes computed {stages.get('computed', '?')}, reused from the store "
-             f"{stages.get('reused', '?')}; wall time {_fmt(lookup(s, 'timings_s.total'), '.1f')} s "
+             f"{stages.get('reused', '?')}; wall time {_shown([lookup(s, 'timings_s.total')], False)[0]} s "
              "(`summary.json:timings_s.total`)"]
     longest = list(stages.get("seconds", {}).items())[:8]
     if longest:

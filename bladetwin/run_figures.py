@@ -9,7 +9,7 @@ from matplotlib.colors import TwoSlopeNorm
 from matplotlib.figure import Figure
 
 __all__ = ["plot_blade_deltas", "plot_joint_patterns", "plot_contact_probability", "plot_d1b_features", "plot_bias",
-           "plot_rom_update"]
+           "plot_rom_update", "plot_posterior_frequencies"]
 
 
 def plot_blade_deltas(deltas_pct: np.ndarray) -> Figure:
@@ -203,4 +203,43 @@ def plot_rom_update(corrections_pct: np.ndarray, mode_labels: Sequence[str], fam
     ax2.set_ylabel("subspace correlation (mean cos²)")
     ax2.set_title("Full assembly, family by family: ROM vs measured")
     ax2.legend(fontsize=7)
+    return fig
+
+
+def plot_posterior_frequencies(rows: np.ndarray) -> Figure:
+    """Each unfilmed joint's tracked disk–one-blade frequencies against its test: the posterior's answer and its
+    90 % interval, one panel per tracked mode (the figure of :data:`bladetwin.methods.FREQUENCY_HEADER`'s table).
+
+    Parameters
+    ----------
+    rows : ndarray, shape (n_rows, 7)
+        Joint, tracked mode (1-based), the test's frequency (bias removed; NaN where the test did not find the
+        mode), the answer's, the interval's 5 % and 95 % bounds (Hz), and the answer's offset from the test (%).
+    """
+    r = np.asarray(rows, float)
+    modes = np.unique(r[:, 1]).astype(int) if r.size else np.array([], int)
+    ncol = min(5, max(len(modes), 1))
+    nrow = max(1, -(-len(modes) // ncol))
+    fig = Figure(figsize=(2.5 * ncol + 0.6, 2.1 * nrow + 0.5), layout="constrained")
+    axes = np.atleast_1d(fig.subplots(nrow, ncol, sharex=True, squeeze=False)).ravel()
+    joints = np.unique(r[:, 0]).astype(int) if r.size else np.array([], int)
+    x_of = {j: k for k, j in enumerate(joints)}
+    for ax, m in zip(axes, modes, strict=False):
+        sel = r[(r[:, 1] == m) & np.isfinite(r[:, 2])]
+        x = np.array([x_of[int(j)] for j in sel[:, 0]])
+        y = 100 * (sel[:, 3] / sel[:, 2] - 1)
+        lo, hi = 100 * (sel[:, 4] / sel[:, 2] - 1), 100 * (sel[:, 5] / sel[:, 2] - 1)
+        ax.axhline(0, color="0.3", lw=0.8)
+        ax.errorbar(x, y, yerr=[y - lo, hi - y], fmt="o", ms=3, color="C0", ecolor="C0", elinewidth=1.2, capsize=2)
+        ax.set_title(f"mode {m}", fontsize=9)
+        ax.tick_params(labelsize=7)
+    for ax in axes[len(modes):]:
+        ax.set_visible(False)
+    for ax in axes[-ncol:]:
+        ax.set_xticks(range(len(joints)), [str(j) for j in joints], fontsize=6)
+        ax.set_xlabel("joint", fontsize=8)
+    for ax in axes[::ncol]:
+        ax.set_ylabel("vs the test (%)", fontsize=8)
+    fig.suptitle("Disk–one-blade frequencies: the posterior's answer (dot) and its 90 % interval (bar) against "
+                 "the test (0)", fontsize=10)
     return fig

@@ -95,5 +95,5 @@ def test_a_stopped_run_resumes_to_the_same_figures(reference, tmp_path, label, s
     again = json.loads((tmp_path / "again" / "summary.json").read_text())
     for key in ("cases", "joints", "geometric", "bias", "step1", "d1b", "warnings"):
         # equal to 1e-6 relative: BLAS in a process that ran other work first may sum in another order (seen:
-        # 2e-9 relative on a refinement's figure); the report prints at most 4 significant digits
+        # 2e-9 relative on a refinement's figure); the report prints about 3 significant digits
         assert _close(again[key], ref[key]), (key, _first_difference(again[key], ref[key]))

@@ -21,6 +21,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 
 from bladetwin.cli import main  # noqa: E402
 from bladetwin.report import ReportError, format_number, read_csv_table, render_report  # noqa: E402
+from bladetwin.report_cells import format_column  # noqa: E402
 from bladetwin.util import atomic_savefig  # noqa: E402
 
 N_BLADES, N_MODES = 18, 7
@@ -226,8 +227,8 @@ def test_table8_null_cases_show_unavailable(folder, capsys):
         for k in (0, 3, 4):  # Case A, Case C, baseline A are null
             assert values[k] == "unavailable"
         assert "0" not in values[:6]
-    assert rows["mean |Δf| (%)"][1] == "0.7312"  # 4 significant digits
-    assert rows["mean MAC"][1] == "0.8512"
+    assert rows["mean |Δf| (%)"][1] == "0.73"  # a percentage: 2 decimals along the row
+    assert rows["mean MAC"][1] == "0.851"  # 3 significant digits
     assert rows["n modes (paired)"][1] == "54"
     assert rows["mean |Δf| (%)"][6:] == ["0.07", "0.73", "0.46"]
     assert rows["n modes (paired)"][6:] == ["—", "—", "—"]
@@ -239,24 +240,25 @@ def test_heatmap_and_tables(folder, capsys):
     heat = _table(page, "heatmap")
     _, raw = read_csv_table(folder / "blade_deltas.csv")
     assert len(heat["body"]) == N_BLADES and all(len(r) == N_MODES + 1 for r in heat["body"])
-    for row, raw_row in zip(heat["body"], raw, strict=True):
+    columns = [format_column([r[k] for r in raw]) for k in range(1, N_MODES + 1)]  # one rule down each column
+    for i, (row, raw_row) in enumerate(zip(heat["body"], raw, strict=True)):
         assert row[0]["tag"] == "th" and row[0]["text"] == raw_row[0]  # the blade labels the row, uncoloured
         assert "style" not in row[0]["attrs"]
-        for c, text in zip(row[1:], raw_row[1:], strict=True):
+        for k, (c, text) in enumerate(zip(row[1:], raw_row[1:], strict=True)):
             assert "background:#" in c["attrs"].get("style", "")
-            assert c["text"] == f"{float(text):.4g}"
-    # A plain table: numbers to 4 significant digits, integers and text kept, no colours.
+            assert c["text"] == columns[k][i] and c["attrs"]["title"] == text  # the exact value in the tooltip
+    # A plain table: 3 significant digits on each column's largest value, integers and text kept, no colours.
     plain = [t for t in page.tables if [c["text"] for c in t["head"][0]] == ["joint", "f2 (Hz)", "f7 (Hz)", "note"]]
     assert len(plain) == 1
     body = [[c["text"] for c in r] for r in plain[0]["body"]]
-    assert body[0] == ["1", "541.1", "1992", ""] and body[2] == ["3", "543.1", "1990", "film"]
+    assert body[0] == ["1", "541", "1992", ""] and body[2] == ["3", "543", "1990", "film"]
     assert not any("style" in c["attrs"] for r in plain[0]["body"] for c in r)
     joints = _table(page, "joints")
     assert len(joints["body"]) == N_BLADES
-    assert [c["text"] for c in joints["body"][2]] == ["3", "film", "SP-4", "SP-10", "51", "59.57", "51.2", "58.9",
+    assert [c["text"] for c in joints["body"][2]] == ["3", "film", "SP-4", "SP-10", "51.0", "59.6", "51.2", "58.9",
                                                       "—"]
-    assert [c["text"] for c in joints["body"][0]][-3:] == ["—", "—", "0"]  # joint 1: within the family's reach
-    assert [c["text"] for c in joints["body"][1]][-1] == "0.4567 ⚠"  # joint 2: flagged
+    assert [c["text"] for c in joints["body"][0]][-3:] == ["—", "—", "0.00"]  # joint 1: within the family's reach
+    assert [c["text"] for c in joints["body"][1]][-1] == "0.46 ⚠"  # joint 2: flagged
 
 
 def test_the_roms_control_sits_between_b_and_c_and_its_caption_says_what_it_means(folder, capsys):
@@ -334,7 +336,16 @@ def test_helpers(tmp_path):
         read_csv_table(tmp_path / "e.csv")
     assert format_number(None) == "unavailable"
     assert format_number(0.0) == "0"
-    assert format_number(1234.5678) == "1235"
+    assert format_number(1234.5678) == "1235"  # the integer part whole
     assert format_number(" 12 ") == "12"
-    assert format_number(float("nan")) == "NaN"
+    assert format_number(float("nan")) == "—"
     assert format_number("SP-3") == "SP-3"
+    # the examples: 3 significant digits; a percentage at most 2 decimals; no padding of a given value
+    assert [format_number(v) for v in (0.01694, 0.05553, 0.4117, -0.7978)] == ["0.0169", "0.0555", "0.412", "-0.798"]
+    assert [format_number(v, percent=True) for v in (0.4117, 0.07704, -0.7978, 0.00213, 12.345)] == \
+        ["0.41", "0.08", "-0.80", "0.00", "12.3"]
+    assert format_number(0.91) == "0.91" and format_number(0.99962) == "0.9996"  # a MAC keeps what tells it from 1
+    assert format_number(2.68e11) == "2.68e+11" and format_number(3.2e-5) == "3.20e-05"
+    assert format_column(["195.94", "620.676", "2000.1", ""]) == ["196", "621", "2000", ""]
+    assert format_column([0.045, 1.13, 0.2087], percent=True) == ["0.04", "1.13", "0.21"]
+    assert format_column(["1", "2"]) == ["1", "2"] and format_column(["-0.43", "1", "nan"]) == ["-0.43", "1.00", "—"]

@@ -8,7 +8,17 @@ from pathlib import Path
 
 import pytest
 
-from bladetwin.results_doc import load_docs, lookup, readme_blocks, render_results, update_readme, width_rows
+from bladetwin.results_doc import (
+    load_docs,
+    lookup,
+    readme_blocks,
+    render_results,
+    table8_rows,
+    update_readme,
+    width_rows,
+)
+
+from .number_rule import check_column, is_percent_header
 
 REPO = Path(__file__).resolve().parents[2]
 FOLDER = REPO / "docs" / "results"
@@ -64,8 +74,43 @@ def test_every_figure_in_results_md_equals_its_json():
     docs = load_docs(FOLDER)
     text = (REPO / "docs" / "results.md").read_text()
     assert _check_figures(text, docs) >= 20  # Table 8, the contact check and the performance table
-    for case in ("A", "B", "C"):  # the doc holds the run's Table 8, not another run's
-        assert f"{docs['summary.json']['cases'][case]['mean_abs_df_pct']:.3f}" in text
+    for row in table8_rows(docs):  # the doc holds the run's Table 8, not another run's
+        assert f"| {row.label} | {' | '.join(row.cells)} |" in text
+
+
+def _tables(text: str):
+    """Each Markdown table of ``text``: (header, body rows), the ``source`` and ``command`` columns left out."""
+    lines = text.splitlines() + [""]
+    start = None
+    for i, line in enumerate(lines):
+        if line.startswith("|") and start is None:
+            start = i
+        elif not line.startswith("|") and start is not None:
+            rows = [[c.strip() for c in x.strip().strip("|").split(" | ")] for x in lines[start:i]]
+            keep = [k for k, h in enumerate(rows[0]) if h not in ("source", "command")]
+            yield [rows[0][k] for k in keep], [[r[k] for k in keep] for r in rows[2:]]
+            start = None
+
+
+def test_the_readme_and_results_md_follow_the_one_formatting_rule():
+    """About 3 significant digits, percentages at most 2 decimals, one number of decimals down a column (along
+    a row where each row holds one quantity: the contact check); the performance table's cells each alone."""
+    docs = load_docs(FOLDER)
+    n = 0
+    blocks = re.findall(r"<!-- results:\w+ -->\n(.*?)<!-- /results", (REPO / "README.md").read_text(), re.S)
+    for doc in (*blocks, (REPO / "docs" / "results.md").read_text()):
+        for header, body in _tables(doc):
+            if header[0] == "what":  # performance: each cell a quantity of its own
+                n += sum(check_column([c], where=f"{r[0]}") for r in body for c in r[1:])
+            elif header[0] == "unfilmed joints vs truth":  # each row one quantity
+                n += sum(check_column(r[1:], percent="(pp)" in r[0], where=r[0]) for r in body)
+            else:
+                for k, h in enumerate(header[1:], start=1):
+                    n += check_column([r[k] for r in body], percent=is_percent_header(h), where=h)
+    assert n >= 100
+    # the issue's examples: four or five significant digits no more
+    t8 = {r.label: r.cells for r in table8_rows(docs)}
+    assert all(len(c.split(".")[-1]) <= 2 for c in (t8["Case A"][0], t8["Case B"][0]))
 
 
 def _without_source(line: str) -> str:
@@ -107,13 +152,13 @@ def test_missing_benchmarks_and_blocks():
     docs = {"summary.json": {"campaign": "c", "cases": {"A": {"mean_abs_df_pct": 0.1234, "mean_mac": 0.9,
                                                               "n_modes": 7}}}}
     text = render_results(docs)
-    assert "| Case A | 0.123 | 0.900 | 7 | not measured | not measured |" in text
+    assert "| Case A | 0.12 | 0.9 | 7 | not measured | not measured |" in text
     assert "Case B" not in text and "No true patterns" in text
     assert _check_figures(text, docs) == 3
     readme = "a\n<!-- results:table8 -->\nold\n<!-- /results:table8 -->\n<!-- results:other -->\nkeep\n" \
              "<!-- /results:other -->\n"
     out = update_readme(readme, readme_blocks(docs))
-    assert "old" not in out and "| Case A | 0.123" in out and "keep" in out
+    assert "old" not in out and "| Case A | 0.12 |" in out and "keep" in out
 
 
 def test_width_rows():
@@ -121,7 +166,7 @@ def test_width_rows():
     docs = {"summary.json": {"campaign": "c", "methods": {"posterior": {"width_ratio": {"numerical": ratios}}}}}
     rows = width_rows(docs)
     assert [r.label for r in rows] == ["contact area, flank L", "contact area, flank R", "centroid ū (axial), flank L"]
-    assert rows[0].cells == ("0.60", "not measured")
+    assert rows[0].cells == ("0.6", "not measured")  # one decimal down the column: 0.6, 0.7, 0.9 as given
     assert rows[0].sources[0] == "summary.json:methods.posterior.width_ratio.numerical.area L"
     text = render_results(docs)
     assert "## What the disk–one-blade data pin down" in text and _check_figures(text, docs) == 3
