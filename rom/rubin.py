@@ -39,7 +39,7 @@ from scipy.linalg import blas, lapack
 
 from .component import Component
 from .mistuning import as_delta
-from .modal import DenseModes, dense_modes
+from .modal import DenseModes, dense_modes, single_thread_blas
 from .solver import available_backends, factorize, solve_modes
 
 __all__ = ["RubinModel", "Superelement", "rubin", "reduce_blade", "blade_boundary_dofs", "DEFAULT_N_FREE_MODES"]
@@ -275,14 +275,19 @@ def _boundary_inverse(model: RubinModel) -> tuple[np.ndarray, np.ndarray]:
     hit = _INVERSE_MEMO.get(key)
     if hit is not None and hit[0] is model.G_bb:
         return hit[1], hit[2]
-    try:
-        cho = sla.cho_factor(model.G_bb, lower=True, check_finite=False)
-    except np.linalg.LinAlgError as exc:
-        raise ValueError("the residual flexibility over the whole boundary is not positive definite") from exc
-    H = sla.cho_solve(cho, np.eye(model.n_b), check_finite=False)
-    H = 0.5 * (H + H.T)
-    P = H @ (model.M_rb @ H)
-    P = 0.5 * (P + P.T)
+    # One BLAS thread, whatever the caller's: the entry is shared by every later solve of this model in the
+    # process, and a threaded product sums in another order, so a process whose first caller ran threaded would
+    # give other last bits than one whose first caller did not (a dataset part built in a worker against the
+    # same part built in the parent).
+    with single_thread_blas():
+        try:
+            cho = sla.cho_factor(model.G_bb, lower=True, check_finite=False)
+        except np.linalg.LinAlgError as exc:
+            raise ValueError("the residual flexibility over the whole boundary is not positive definite") from exc
+        H = sla.cho_solve(cho, np.eye(model.n_b), check_finite=False)
+        H = 0.5 * (H + H.T)
+        P = H @ (model.M_rb @ H)
+        P = 0.5 * (P + P.T)
     while len(_INVERSE_MEMO) >= _INVERSE_MEMO_SIZE:
         _INVERSE_MEMO.pop(next(iter(_INVERSE_MEMO)))
     _INVERSE_MEMO[key] = (model.G_bb, H, P)

@@ -118,3 +118,21 @@ def test_bad_inputs_raise():
         rubin(bd.blade, np.array([0, 0, 1]), 5)
     with pytest.raises(ValueError, match="n_modes"):
         rubin(bd.blade, np.arange(3), 0)
+
+
+def test_the_shared_boundary_inverse_does_not_depend_on_the_first_callers_blas_threads():
+    """Every solve of a model in a process shares one whole-boundary inverse (``rom.rubin._boundary_inverse``).
+    Its bits must not depend on the BLAS threads of whoever asked first: a dataset part built in a worker process
+    would otherwise differ in the last bits from the same part built in the parent (seen in the suite)."""
+    from threadpoolctl import threadpool_limits
+
+    import rom.rubin as rubin_module
+
+    model = rom_models.blade()
+    got = []
+    for threads in (2, 1):
+        rubin_module._INVERSE_MEMO.clear()
+        with threadpool_limits(threads):
+            got.append(rubin_module._boundary_inverse(model))
+    rubin_module._INVERSE_MEMO.clear()
+    assert np.array_equal(got[0][0], got[1][0]) and np.array_equal(got[0][1], got[1][1])
