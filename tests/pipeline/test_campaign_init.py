@@ -2,9 +2,9 @@
 
 The bundled campaign and a small simulated one, each with its ``campaign.toml`` taken away: every test's type
 and blade/joint must be guessed as the original manifest gives them, and the small one's draft, once the fields
-nothing tells are given from the original, must run to the same figures. Folders no rule explains are refused
-in one line. Runs through :func:`bladetwin.cli.main`, as a user would; about a minute on 2 cores (the simulated
-campaign and its one cold run).
+nothing tells are given from the original, must run to the same figures (on tests/pipeline/test_run.py's campaign,
+whose cold run is already there). Folders no rule explains are refused in one line. Runs through
+:func:`bladetwin.cli.main`, as a user would.
 """
 
 from __future__ import annotations
@@ -15,7 +15,6 @@ import shutil
 import tomllib
 from pathlib import Path
 
-import numpy as np
 import pytest
 import tomli_w
 
@@ -72,20 +71,18 @@ def test_the_bundled_campaign_is_guessed_as_its_manifest_says(tmp_path, capsys):
 
 @pytest.fixture(scope="module")
 def drafted(tmp_path_factory):
-    """A small simulated campaign, its original run, then its manifest replaced by campaign init's draft."""
+    """A small simulated campaign with its manifest replaced by campaign init's draft. (That a filled draft runs
+    to the original's figures is checked on tests/pipeline/test_run.py's campaign, whose cold run is there.)"""
     root = tmp_path_factory.mktemp("init")
     camp = root / "camp"
     simulate_campaign(CampaignSpec(seed=3, name="camp", **SMALL), camp)
-    cache = root / "cache"
-    # the draft is run in the same folder: the store's keys name the files, so the second run reuses the first's
-    assert main(["run", str(camp), *FAST, "--out", str(root / "orig"), "--cache-dir", str(cache)]) == 0
     original = tomllib.loads((camp / "campaign.toml").read_text())
     (camp / "campaign.toml").unlink()
     assert _init(camp) == 0
     return camp, root, original, (camp / "campaign.toml").read_text()
 
 
-def _fill(draft: dict, original: dict, keys=("grid", "model", "masses", "films")) -> dict:
+def filled_draft(draft: dict, original: dict, keys=("grid", "model", "masses", "films")) -> dict:
     """The draft with the fields nothing in the files tells given from the original manifest."""
     doc = json.loads(json.dumps(draft))
     if "grid" in keys:
@@ -125,23 +122,10 @@ def test_an_unfilled_draft_is_refused_field_by_field(drafted, capsys):
     line = _refusal(capsys)
     assert "campaign.toml [campaign]: grid = [], expected [rows, cols]" in line, line
     for given, named in ((("grid",), "family = 'FILL IN'"), (("grid", "model"), "pixel_size = 'FILL IN'")):
-        assert _run(camp, root, _fill(draft, original, given), "unfilled") == 2
+        assert _run(camp, root, filled_draft(draft, original, given), "unfilled") == 2
         line = _refusal(capsys)
         assert named in line and "campaign.toml" in line, line
     (camp / "campaign.toml").write_text(text)
-
-
-def test_the_filled_draft_runs_to_the_original_figures(drafted):
-    camp, root, original, text = drafted
-    assert _run(camp, root, _fill(tomllib.loads(text), original), "draft") == 0
-    (camp / "campaign.toml").write_text(text)
-    a, b = (json.loads((root / o / "summary.json").read_text()) for o in ("orig", "draft"))
-    assert a["cases"] == b["cases"]
-    assert a["joints"] == b["joints"]
-    pa, pb = (np.load(root / o / "identified_patterns.npz") for o in ("orig", "draft"))
-    assert sorted(pa.files) == sorted(pb.files)
-    for k in pa.files:
-        np.testing.assert_array_equal(pa[k], pb[k])
 
 
 def _relabel(src: Path, dst: Path, node) -> None:

@@ -487,3 +487,28 @@ def test_bad_campaigns_fail_fast_with_one_line(campaign, tmp_path, capsys, edit,
     lines = [ln for ln in err.splitlines() if ln.startswith("bladetwin: error")]
     assert len(lines) == 1 and all(n in lines[0] for n in needles), err
     assert "EMA " not in err and not (tmp_path / "cache" / "nodes").exists()  # refused before any long stage
+
+
+def test_campaign_init_s_filled_draft_runs_to_the_campaign_s_figures(campaign, cold):
+    """``bladetwin campaign init`` on this campaign with its manifest taken away; once the fields nothing in the
+    files tells (grid, model, masses, the films' metadata) are given from the original, the run gives the cold
+    run's figures. In the same folder, so that the run reuses the cold run's store (its keys name the files)."""
+    from .test_campaign_init import filled_draft
+
+    root, camp = campaign
+    out, ref = cold
+    manifest = camp / "campaign.toml"
+    text = manifest.read_text()
+    try:
+        manifest.unlink()
+        assert main(["campaign", "init", str(camp)]) == 0
+        manifest.write_text(tomli_w.dumps(filled_draft(tomllib.loads(manifest.read_text()), tomllib.loads(text))))
+        draft_out = root / "draft_out"
+        assert main([*RUN, str(camp), *KNN_ONLY, "--out", str(draft_out), "--cache-dir", str(root / "cache"),
+                     "--quiet"]) == 0
+    finally:
+        manifest.write_text(text)
+    got = json.loads((draft_out / "summary.json").read_text())
+    assert got["cases"] == ref["cases"] and got["joints"] == ref["joints"]
+    a, b = (np.load(o / "identified_patterns.npz") for o in (out, draft_out))
+    assert sorted(a.files) == sorted(b.files) and all(np.array_equal(a[k], b[k]) for k in a.files)
