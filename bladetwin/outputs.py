@@ -286,7 +286,7 @@ def write_outputs(res: RunResult, out: Path, *, command: str = "bladetwin run", 
     out.mkdir(parents=True, exist_ok=True)
     notes: list[str] = [] if figures else [NO_FIGURES_NOTE]
     with recording() as texts, figures_drawn(figures):  # a figure's or a table's warning: to summary.json too
-        sections = [ema_section(res, out, notes), calibration_section(res, out, write_csv), _patterns_section(res, out)]
+        sections = [ema_section(res, out, notes), calibration_section(res, out), _patterns_section(res, out)]
         sections = [x for x in sections if x is not None]
         ident, joints, geo = _identification_section(res, out)
         d1b, d1b_summary = _d1b_section(res, out)

@@ -7,8 +7,8 @@ from pathlib import Path
 import matplotlib.pyplot as plt
 import numpy as np
 
+from .output_files import save_figure, write_csv
 from .stages import RunResult
-from .util import atomic_savefig, drawing_figures
 
 __all__ = ["calibration_summary", "calibration_section"]
 
@@ -19,7 +19,7 @@ def calibration_summary(res: RunResult) -> dict:
     """``summary.json:calibration``: per component the target, E and ρ before and after, ρ's source; the modes."""
     cal = res.calibration
     if cal is None:
-        return {"enabled": False, "disk": None, "blade": None, "notes": ["not run (--calibrate)"], "modes": []}
+        return {"enabled": False, "disk": None, "blade": None, "notes": ["not run (--no-calibrate)"], "modes": []}
     return {"enabled": True, **cal.to_dict(), "modes": cal.mode_rows()}
 
 
@@ -39,7 +39,7 @@ def _plot(rows: list[dict]):
     return fig
 
 
-def calibration_section(res: RunResult, out: Path, csv_writer) -> dict | None:
+def calibration_section(res: RunResult, out: Path) -> dict | None:
     """The report's calibration section (None when the run did not calibrate); writes its CSV files and figure."""
     s = calibration_summary(res)
     if not s["enabled"]:
@@ -56,24 +56,22 @@ def calibration_section(res: RunResult, out: Path, csv_writer) -> dict | None:
     modes = s["modes"]
     mode_rows = [[r["component"], r["mode"], r["test_hz"], r["before_hz"], r["before_pct"], r["after_hz"],
                   r["after_pct"]] for r in modes]
-    tables = [{"file": csv_writer(out / "calibration.csv", head, rows),
+    tables = [{"file": write_csv(out / "calibration.csv", head, rows),
                "caption": "Material calibration (paper §5, Table 4): the disk's E on its first measured frequency, "
                           "the blades' E on the mean of their squared first frequencies, ρ from the weighed masses."},
-              {"file": csv_writer(out / "calibration_modes.csv", ["component", "mode", "test (Hz)", "model before (Hz)",
+              {"file": write_csv(out / "calibration_modes.csv", ["component", "mode", "test (Hz)", "model before (Hz)",
                                                                   "before (%)", "model after (Hz)", "after (%)"],
                                   mode_rows),
                "caption": "Each free-blade (√ of the blades' mean f²) and free-disk mode against the model, before "
                           "and after calibration (paired by nearest frequency)."}]
     figs = []
-    if modes and drawing_figures():
-        path = out / "calibration.png"
-        fig = _plot(modes)
-        atomic_savefig(fig, path, dpi=110)
-        plt.close(fig)
-        figs.append({"file": path.name, "caption": "The model's frequency error on the free components before and "
-                                                    "after calibration (paper Figs. 9–13)."})
+    drawn = save_figure(lambda: _plot(modes), out / "calibration.png") if modes else None
+    if drawn:
+        figs.append({"file": drawn, "caption": "The model's frequency error on the free components before and "
+                                               "after calibration (paper Figs. 9–13)."})
     text = ["bladetwin calibrates E and ρ of the disk and the blades before any reduction, as the paper's §5 does; "
-            "every ROM of the run is the calibrated one (off unless `--calibrate`)."]
+            "every ROM of the run is the calibrated one (on by default; `--no-calibrate` keeps the handbook "
+            "materials)."]
     text += [f"Note: {n}." for n in s["notes"]]
     return {"id": "calibration", "title": "Material calibration (paper §5, Table 4)", "text": text,
             "figures": figs, "tables": tables}

@@ -408,8 +408,7 @@ class _StiffnessProblem:
         for q, j in enumerate(self.keys):
             _, _, _, s = self.joints[j]
             f, jac, use, r = parts[j]
-            jk = np.empty((int(use.sum()), 2))
-            jk[:] = 0.0
+            jk = np.zeros((int(use.sum()), 2))
             for p in np.flatnonzero(~np.asarray(held, bool)):
                 lk = log_k.copy()
                 lk[p] += _LOG_K_STEP

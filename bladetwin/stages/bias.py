@@ -54,11 +54,10 @@ class Features:
 def tracker_for(disk, blade, dataset: Dataset) -> ModeTracker:
     """The dataset's mode tracker, built once per process for the same (loaded) models and dataset."""
     k = (id(disk), id(blade), id(dataset))
-    hit = _TRACKERS.get(k)
-    if hit is None or hit[0] is not disk or hit[1] is not blade or hit[2] is not dataset:
+    if k not in _TRACKERS:
         _TRACKERS.clear()
-        _TRACKERS[k] = hit = (disk, blade, dataset, ModeTracker.from_dataset(disk, blade, dataset))
-    return hit[3]
+        _TRACKERS[k] = (disk, blade, dataset, ModeTracker.from_dataset(disk, blade, dataset))
+    return _TRACKERS[k][3]
 
 
 def match_to_reference(frequencies_hz: np.ndarray, reference_hz: np.ndarray, window: float = MATCH_WINDOW
