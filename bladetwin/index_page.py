@@ -1,8 +1,10 @@
 """The index page of a run on several campaigns: their Table 8 and every joint's identified contact side by side.
 
-Like :mod:`bladetwin.report`, it only reads what the run wrote (each campaign's ``summary.json``) and computes
-nothing; its numbers follow the report's one formatting rule (:mod:`bladetwin.report_cells`).
-Labs re-test one disk after each re-assembly; this page shows how the joints seated each time.
+Like :mod:`bladetwin.report`, it only reads what the run wrote (each campaign's ``summary.json`` and the files it
+lists) and computes nothing; its numbers follow the report's one formatting rule (:mod:`bladetwin.report_cells`).
+Labs re-test one disk after each re-assembly; this page shows how the joints seated each time and marks the
+joints whose contact changed between two campaigns (:mod:`bladetwin.index_compare` states the rule), with each
+campaign's contact maps and films side by side and Table 8 of the paper's and the updated ROM.
 """
 
 from __future__ import annotations
@@ -11,7 +13,16 @@ import json
 import os
 from pathlib import Path
 
-from .report_cells import UNAVAILABLE, format_column
+from .index_compare import (
+    CHANGED,
+    FILM_CHANGE_PP,
+    change_marks,
+    contact_maps,
+    film_views,
+    read_contact,
+    updated_table8,
+)
+from .report_cells import UNAVAILABLE, format_column, format_number
 from .report_tables import FOLD_ROWS
 from .util import atomic_write_text
 
@@ -55,13 +66,35 @@ def index_rows(summaries: list[dict]) -> dict:
 
 
 def render_index(root: str | os.PathLike, outs: list[Path]) -> Path:
-    """Write ``root/index.html`` comparing the campaigns whose output folders are ``outs``; returns its path."""
+    """Write ``root/index.html`` comparing the campaigns whose output folders are ``outs``.
+
+    Parameters
+    ----------
+    root : path
+        The run's output folder (the page's links are relative to it).
+    outs : list of Path
+        Each campaign's output folder, in the order compared (a re-assembly after the one before).
+
+    Returns
+    -------
+    Path
+        The page written.
+    """
     import jinja2
 
     root = Path(root)
-    summaries = [json.loads((Path(o) / "summary.json").read_text(encoding="utf-8")) for o in outs]
+    outs = [Path(o) for o in outs]
+    summaries = [json.loads((o / "summary.json").read_text(encoding="utf-8")) for o in outs]
     env = jinja2.Environment(loader=jinja2.PackageLoader("bladetwin", "templates"), autoescape=True)
-    links = [{"name": s["campaign"], "href": os.path.relpath(Path(o) / s.get("report", "report.html"), root),
+    links = [{"name": s["campaign"], "href": os.path.relpath(o / s.get("report", "report.html"), root),
               "known": s["known_joints"], "kind": s.get("kind", "")} for s, o in zip(summaries, outs, strict=True)]
-    html = env.get_template("index.html.j2").render(campaigns=links, fold_rows=FOLD_ROWS, **index_rows(summaries))
+    rows = index_rows(summaries)
+    contacts = [read_contact(s, o) for s, o in zip(summaries, outs, strict=True)]
+    updated = updated_table8(summaries)
+    html = env.get_template("index.html.j2").render(
+        campaigns=links, fold_rows=FOLD_ROWS, **rows, updated=updated,
+        updated_missing=any(UNAVAILABLE in row for row in updated),
+        changes=change_marks(summaries, contacts, len(rows["joints"])), maps=contact_maps(summaries, outs, root),
+        films=film_views(summaries, root), changed_symbol=CHANGED,
+        film_change_pp=format_number(FILM_CHANGE_PP))
     return atomic_write_text(root / INDEX_NAME, html)

@@ -230,7 +230,10 @@ def plot_posterior_frequencies(rows: np.ndarray) -> Figure:
         y = 100 * (sel[:, 3] / sel[:, 2] - 1)
         lo, hi = 100 * (sel[:, 4] / sel[:, 2] - 1), 100 * (sel[:, 5] / sel[:, 2] - 1)
         ax.axhline(0, color="0.3", lw=0.8)
-        ax.errorbar(x, y, yerr=[y - lo, hi - y], fmt="o", ms=3, color="C0", ecolor="C0", elinewidth=1.2, capsize=2)
+        # the interval as a bar and the answer as a dot, drawn apart: the answer (the posterior's pattern) may lie
+        # outside the interval of the frequencies over its samples, which an error bar around it cannot show
+        ax.vlines(x, lo, hi, color="C0", lw=1.2)
+        ax.plot(x, y, "o", ms=3, color="C0")
         ax.set_title(f"mode {m}", fontsize=9)
         ax.tick_params(labelsize=7)
     for ax in axes[len(modes):]:

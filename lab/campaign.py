@@ -45,7 +45,7 @@ from rom.solver import nodal_diameters
 from .documents import blade_deltas_pct, jsonable, specimen_truth, weighed
 from .films import ORIENTATION, FilmParams, render_film, write_film
 from .hammer import hammer_test
-from .patterns import PressureParams, flank_coordinates, simulate_pressure
+from .patterns import PressureParams, flank_coordinates, redraw_joints, simulate_pressure
 from .rig import MIN_SNR, RigSetup, canonical_degenerate, damping_ratios, measure, peak_snr
 from .truth import (
     TruthParams,
@@ -122,6 +122,10 @@ class CampaignSpec:
     differ from the model as real ones do, docs/twin.md) or ``"ideal"`` (the model's own parts, for tests that
     isolate one stage); ``truth`` overrides it with parameters made in Python. ``coherence`` names the test
     types whose files carry the time-domain hammer test's coherence (ignored by the ideal twin's test).
+    ``reseat`` names joints whose contact is drawn again (:func:`lab.patterns.redraw_joints`, both flanks'
+    contact fraction near ``reseat_fraction`` where given): the seed's campaign after those blades were pulled
+    and re-seated, for comparing re-assemblies. Only their contact changes; the tests whose band it moves, and
+    those after them, draw their noise from the same stream but may draw it differently.
     """
 
     seed: int = 0
@@ -132,6 +136,8 @@ class CampaignSpec:
     name: str = "academic"
     realism: str = "realistic"
     coherence: tuple[str, ...] = TEST_TYPES
+    reseat: tuple[int, ...] = ()
+    reseat_fraction: float | None = None
     truth: TruthParams | None = None
     pressure: PressureParams | None = None
     film: FilmParams = field(default_factory=FilmParams)
@@ -160,7 +166,8 @@ class CampaignSpec:
                f" --name {self.name} --realism {self.realism} --coherence {','.join(self.coherence) or 'none'}")
         custom = self != CampaignSpec(self.seed, self.n_blades, tuple(self.grid), self.level, self.known_joints,
                                       self.name, self.realism, tuple(self.coherence))
-        return cmd + (" (plus settings made in Python: truth, pressure, film or lines)" if custom else "")
+        return cmd + (" (plus settings made in Python: re-seated joints, truth, pressure, film or lines)"
+                      if custom else "")
 
     def known(self) -> tuple[int, ...]:
         known = default_known_joints(self.n_blades) if self.known_joints is None else tuple(self.known_joints)
@@ -295,6 +302,8 @@ class _CampaignWriter:
         bd = build_bladed_disk(params)
         u, v = flank_coordinates(bd)
         self.pressure = simulate_pressure(u, v, params.n_blades, rng_pressure, spec.pressure_params())
+        if spec.reseat:  # a sixth stream, spawned after the five: every other draw of the seed stays as it was
+            self.pressure = redraw_joints(self.pressure, spec.reseat, rng.spawn(1)[0], spec.reseat_fraction)
         self.patterns = self.pressure.patterns()
         node_pressure = np.stack([np.stack([self.pressure.pressure(s, f, u, v) for f in ("L", "R")])
                                   for s in range(1, params.n_blades + 1)])
@@ -313,7 +322,7 @@ class _CampaignWriter:
         }
         pressure = self.pressure
         self.truth: dict = {"seed": spec.seed, "n_blades": params.n_blades, "grid": list(params.grid),
-                            "known_joints": list(known), "realism": spec.realism,
+                            "known_joints": list(known), "realism": spec.realism, "reseated_joints": list(spec.reseat),
                             "truth_params": jsonable(self.truth_params), **specimen_truth(self.twin),
                             "blade_variations": [v.to_dict() for v in self.twin.variations],
                             "contact_fraction_pct": {"L": (100 * pressure.fractions[:, 0]).tolist(),

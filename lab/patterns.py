@@ -60,7 +60,7 @@ from rom.contact import ContactPattern
 
 from .pressure_fields import CommonShape, FlankField, Lattice, SmoothField
 
-__all__ = ["PressureParams", "TruePressure", "flank_coordinates", "simulate_pressure"]
+__all__ = ["PressureParams", "TruePressure", "flank_coordinates", "simulate_pressure", "redraw_joints"]
 
 FLANKS = ("L", "R")
 
@@ -392,30 +392,82 @@ def simulate_pressure(
     xi, eta = _normalized(u, v, u, v)
     fields, thresholds = [], []
     for _ in range(int(n_joints)):
-        seat = rng.normal(0.0, p.seating_spread)
-        g_axial, g_radial = rng.normal(0.0, p.tilt_spread, 2)
-        pair, thr = [], []
-        for k, common in enumerate(commons):
-            n_isl = rng.poisson(p.islands)
-            f = FlankField(
-                common=common,
-                seat=seat,
-                tilt=np.array([g_axial if k == 0 else -g_axial, g_radial]),
-                variation=SmoothField.draw(rng, p.n_features, p.variation_length_scale),
-                variation_amplitude=p.variation,
-                island_centre=rng.uniform(-0.5, 0.5, (n_isl, 2)),
-                island_radius=rng.uniform(*p.island_radius, n_isl),
-                island_depth=rng.uniform(*p.island_depth, n_isl),
-                # drawn only where asked, so that the ideal generator's random stream stays as it was
-                roughness=SmoothField.draw(rng, p.n_features, p.roughness_length_scale) if p.roughness else None,
-                roughness_amplitude=p.roughness,
-            )
-            target = rng.uniform(*p.fraction_range)
-            p_nodes = p.p_ref * _softplus(f(xi, eta))
-            thr.append(_threshold(p_nodes, target, *p.fraction_range, p.fraction_window, p.threshold_margin))
-            pair.append(f)
-        fields.append(tuple(pair))
+        pair, thr = _draw_joint(rng, commons, p, xi, eta)
+        fields.append(pair)
         thresholds.append(thr)
     truth = TruePressure(u, v, tuple(fields), np.array(thresholds), p)
     truth.patterns()  # fail here, not in a later ROM, if a tiny grid cannot hold 3 non-collinear contacts
     return truth
+
+
+def _draw_joint(rng: np.random.Generator, commons: tuple, p: PressureParams, xi: np.ndarray, eta: np.ndarray,
+                fraction: float | None = None) -> tuple[tuple[FlankField, FlankField], list[float]]:
+    """One joint's own parts (seating depth, tilt, local field, islands, roughness, contact fraction) drawn from
+    ``rng`` on the flank sides' ``commons``: its two flank fields and their thresholds. ``fraction``: both
+    flanks' contact fraction aimed at instead of a draw in ``p.fraction_range`` (the draw is made all the same,
+    so that the stream advances alike)."""
+    seat = rng.normal(0.0, p.seating_spread)
+    g_axial, g_radial = rng.normal(0.0, p.tilt_spread, 2)
+    pair, thr = [], []
+    for k, common in enumerate(commons):
+        n_isl = rng.poisson(p.islands)
+        f = FlankField(
+            common=common,
+            seat=seat,
+            tilt=np.array([g_axial if k == 0 else -g_axial, g_radial]),
+            variation=SmoothField.draw(rng, p.n_features, p.variation_length_scale),
+            variation_amplitude=p.variation,
+            island_centre=rng.uniform(-0.5, 0.5, (n_isl, 2)),
+            island_radius=rng.uniform(*p.island_radius, n_isl),
+            island_depth=rng.uniform(*p.island_depth, n_isl),
+            # drawn only where asked, so that the ideal generator's random stream stays as it was
+            roughness=SmoothField.draw(rng, p.n_features, p.roughness_length_scale) if p.roughness else None,
+            roughness_amplitude=p.roughness,
+        )
+        target = rng.uniform(*p.fraction_range)
+        lo, hi = p.fraction_range
+        if fraction is not None:
+            target, lo, hi = fraction, min(lo, fraction), max(hi, fraction)
+        p_nodes = p.p_ref * _softplus(f(xi, eta))
+        thr.append(_threshold(p_nodes, target, lo, hi, p.fraction_window, p.threshold_margin))
+        pair.append(f)
+    return (pair[0], pair[1]), thr
+
+
+def redraw_joints(truth: TruePressure, joints, rng: np.random.Generator,
+                  fraction: float | None = None) -> TruePressure:
+    """The same true pressure with the named joints drawn again: a blade pulled out and re-seated.
+
+    Each named joint's own parts (seating depth, tilt, local field, islands, roughness and contact fraction) are
+    drawn again from ``rng`` as :func:`simulate_pressure` draws them; the flank sides' common shapes and every
+    other joint stay exactly as they were.
+
+    Parameters
+    ----------
+    truth : TruePressure
+        The pressure before re-seating (:func:`simulate_pressure`).
+    joints : iterable of int
+        The re-seated joints, 1..``truth.n_joints``.
+    rng : numpy.random.Generator
+        The re-draw's own stream (give one that the rest of the simulation does not use, so that nothing else
+        changes).
+    fraction : float, optional
+        Both flanks' contact fraction in (0, 1) after re-seating, within a node or ``fraction_window``: a
+        re-seat that is sure to change the contact (say 0.2, a narrow strip, for a joint that bore on most of
+        its flank). Default: drawn in ``truth.params.fraction_range``, as any joint's.
+
+    Returns
+    -------
+    TruePressure
+    """
+    if fraction is not None and not 0.0 < fraction < 1.0:
+        raise ValueError(f"fraction must lie in (0, 1), got {fraction!r}")
+    named = sorted({truth._index(j, "L")[0] for j in joints})
+    commons = tuple(f.common for f in truth.fields[0])
+    xi, eta = _normalized(truth.u, truth.v, truth.u, truth.v)
+    fields, thresholds = list(truth.fields), np.array(truth.threshold)
+    for s in named:
+        fields[s], thresholds[s] = _draw_joint(rng, commons, truth.params, xi, eta, fraction)
+    out = TruePressure(truth.u, truth.v, tuple(fields), thresholds, truth.params)
+    out.patterns()  # as simulate_pressure: fail here if a joint cannot hold 3 non-collinear contacts
+    return out

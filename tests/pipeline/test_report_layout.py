@@ -399,3 +399,15 @@ def test_the_report_prints_without_cut_tables(folder, tmp_path):
                     f"--print-to-pdf={pdf}", report.as_uri()], capture_output=True, timeout=120, check=True)
     data = pdf.read_bytes()
     assert data.startswith(b"%PDF") and len(re.findall(rb"/Type\s*/Page\b", data)) >= 2
+
+
+def test_an_answer_outside_its_interval_is_drawn_where_it_lies():
+    """The posterior's answer (its pattern) may lie outside the interval of its samples' frequencies: the figure
+    draws the bar from the interval's bounds and the dot at the answer, instead of refusing (a re-seated joint's
+    run raised "'yerr' must not contain negative values")."""
+    rows = np.array([[2, 1, 100.0, 100.5, 99.8, 100.2, 0.5], [2, 2, 200.0, 199.0, 199.5, 200.5, -0.5]])
+    fig = plot_posterior_frequencies(rows)
+    ax = fig.axes[0]
+    bar = ax.collections[0].get_segments()[0]
+    np.testing.assert_allclose(bar[:, 1], [100 * (99.8 / 100 - 1), 100 * (100.2 / 100 - 1)])
+    np.testing.assert_allclose(ax.lines[-1].get_ydata(), [0.5])
