@@ -17,7 +17,8 @@ from .user_warnings import install as install_warnings
 __all__ = ["main", "build_parser", "error_message"]
 
 # Sub-command modules, in help order. Each must define ``register(subparsers) -> None``.
-_COMMAND_MODULES = ("cli_run", "cli_report", "cli_fe", "cli_ema", "cli_rom", "cli_lab", "cli_identify", "cli_campaign")
+_COMMAND_MODULES = ("cli_run", "cli_report", "cli_response", "cli_fe", "cli_ema", "cli_rom", "cli_lab", "cli_identify",
+                    "cli_campaign")
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -28,6 +28,7 @@ from .methods import FREQUENCY_HEADER, POSTERIOR_HEADER, methods_summary, poster
 from .output_files import NO_FIGURES_NOTE, blank, save_figure, write_csv
 from .outputs_calibration import calibration_section, calibration_summary
 from .outputs_ema import ema_modes, ema_section
+from .outputs_response import response_section
 from .outputs_rom import full_section, rom_section
 from .rom_summary import (
     rom_summary,
@@ -294,6 +295,10 @@ def write_outputs(res: RunResult, out: Path, *, command: str = "bladetwin run", 
         rom = rom_summary(res)
         sections += [ident, *_posterior_section(res, out, methods), d1b, *rom_section(res, out, rom),
                      full_section(res, out)]
+        response = None
+        if res.response is not None:  # below every other section
+            section, response = response_section(res.response, out)
+            sections.append(section)
     for sec in sections:  # a figure not drawn is not listed
         sec["figures"] = [f for f in sec.get("figures", []) if f.get("file")]
     for text in unique(texts):
@@ -303,7 +308,7 @@ def write_outputs(res: RunResult, out: Path, *, command: str = "bladetwin run", 
     summary["warnings"] = unique(summary["warnings"] + texts)
     summary.update(_clean({"joints": joints, "sections": sections, "geometric": geo, "d1b": d1b_summary,
                            "ema": ema_modes(res), "methods": methods,
-                           "rom": rom}))
+                           "rom": rom, "response": response}))
     summary["files"] = {"patterns": "identified_patterns.npz", "rom_modes_uff": "identified_rom_modes.uff"}
     atomic_write_text(out / "summary.json", json.dumps(summary, indent=2, allow_nan=False, default=_nan) + "\n")
     return summary

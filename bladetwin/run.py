@@ -40,7 +40,8 @@ STAGE_GROUPS = {"ema": (names.EMA, names.BLADE_TABLE, names.CALIBRATION),
                 "dataset": (names.SYNTHETIC, names.SENSITIVITY, names.DATASET),
                 "identify": (names.FEATURES, names.PREDICTIONS, names.REFINE, names.PATTERNS, names.POSTERIOR),
                 "rom_update": (names.ROM_UPDATE,),
-                "validation": (names.FULL, names.VALIDATION, names.D1B_ROWS, names.N_FULL_MODES)}
+                "validation": (names.FULL, names.VALIDATION, names.D1B_ROWS, names.N_FULL_MODES),
+                "response": (names.RESPONSE,)}
 
 
 def check_campaign(campaign: Campaign) -> None:

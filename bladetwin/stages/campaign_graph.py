@@ -26,6 +26,7 @@ from . import (
     patterns,
     posterior,
     refinement,
+    response,
     rom_update,
     validation,
 )
@@ -116,10 +117,6 @@ class RunOptions:
 
 #: The identification methods of ``bladetwin run --method`` (``both`` runs the first two side by side).
 METHODS = ("knn", "posterior", "both")
-
-#: Which EMA first, among the nodes ready with it: the longest chain of the run starts at the CB disk and the blade
-#: and d1b tests (dataset → k-NN → refinement); the disk and full-assembly tests are only needed by the full solves,
-#: which also wait for the cyclic disk.
 
 
 def reference_patterns(campaign) -> list | None:
@@ -396,4 +393,5 @@ def campaign_pipeline(campaign, opts: RunOptions) -> Pipeline:
     if opts.posterior:
         _posterior_nodes(p, campaign, opts)
     _validation_nodes(p, campaign, opts)
+    response.add_response_node(p, campaign, opts)
     return p

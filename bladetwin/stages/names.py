@@ -20,7 +20,7 @@ __all__ = [
     "CAMPAIGN", "FE_MODEL", "FE_NOMINAL", "STORE", "DASK",
     "BLADE_TABLE", "CALIBRATION", "DISK_CB", "BLADE_RUBIN", "DISK_CYCLIC", "DELTA_ALL",
     "FILMS", "KNOWN", "BASELINE", "REFERENCE", "SYNTHETIC", "SENSITIVITY", "DATASET", "FEATURES", "PREDICTIONS",
-    "N_FULL_MODES", "VALIDATION", "D1B_ROWS",
+    "N_FULL_MODES", "VALIDATION", "D1B_ROWS", "RESPONSE", "RESPONSE_TUNED_PAPER", "RESPONSE_TUNED_UPDATED",
     "EMA", "TEST", "FULL", "ROM_UPDATE", "PATTERNS", "POSTERIOR", "REFINE", "FAMILIES",
     "PATTERNS_BASELINE", "POSTERIOR_PRIOR", "POSTERIOR_SURROGATE", "POSTERIOR_REPRESENTATION", "POSTERIOR_FACTORS",
     "ROM_UPDATE_STIFFNESS",
@@ -45,6 +45,10 @@ FILMS, KNOWN, BASELINE, REFERENCE = "films", "known", "baseline", "reference"
 SYNTHETIC, SENSITIVITY, DATASET = "synthetic", "sensitivity", "dataset"
 FEATURES, PREDICTIONS = "features", "predictions"
 N_FULL_MODES, VALIDATION, D1B_ROWS = "n_full_modes", "validation", "d1b_rows"
+#: The forced response and the amplification factors (:mod:`~bladetwin.stages.response`).
+RESPONSE = "response"
+#: Each ROM's tuned disk for the amplification factors: nodes of their own, so they solve beside other work.
+RESPONSE_TUNED_PAPER, RESPONSE_TUNED_UPDATED = "response_tuned_paper", "response_tuned_updated"
 
 # ------------------------------------------------------------------------------------------------ families
 #: The families' prefixes: every name of one is ``<prefix><member>``.

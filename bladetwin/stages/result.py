@@ -78,6 +78,8 @@ class RunResult:
     rom_update: dict = field(default_factory=dict)
     #: The paper's material calibration (:class:`bladetwin.stages.calibration.CalibrationResult`), None when off.
     calibration: object = None
+    #: The forced response and amplification factors (:class:`bladetwin.stages.response.Response`), None if absent.
+    response: object = None
 
     @property
     def joints(self) -> np.ndarray:
@@ -190,7 +192,8 @@ def gather(res, campaign, opts: RunOptions, bd, timings: dict[str, float]) -> Ru
         reference=res[names.REFERENCE], d1b_rows=res[names.D1B_ROWS], full=fulls, validation=res[names.VALIDATION],
         notes=_notes(res, campaign, opts, fits), timings_s=timings, posterior=post, answers=_answers(res, opts),
         rom_update=names.members(res, names.ROM_UPDATE),
-        calibration=res[names.CALIBRATION] if names.CALIBRATION in res else None)
+        calibration=res[names.CALIBRATION] if names.CALIBRATION in res else None,
+        response=res[names.RESPONSE] if names.RESPONSE in res else None)
 
 
 def _answers(res, opts: RunOptions) -> dict:

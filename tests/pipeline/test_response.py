@@ -1,0 +1,131 @@
+"""``bladetwin response`` and the run's ``response`` node (issue 47): bad input refused in one line, and the
+amplification factors of a small virtual run checked against a direct harmonic solve of the same modes."""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+
+import numpy as np
+import pytest
+
+from bladetwin.campaign import read_campaign
+from bladetwin.cli import main
+from bladetwin.run import run_nodes
+from bladetwin.stages import names
+from bladetwin.stages.campaign_graph import RunOptions
+from bladetwin.stages.full import solve_assembly
+
+RUN_ARGS = ["--refine", "0", "--n", "3", "--rom", "paper", "--method", "knn", "--no-figures"]
+
+
+def _error_line(capsys, argv) -> str:
+    rc = main(argv)
+    err = capsys.readouterr().err.strip().splitlines()
+    assert rc == 2 and len(err) == 1, err
+    assert "Traceback" not in err[0]
+    return err[0]
+
+
+def _fake_out(tmp_path, response=True):
+    block = {"n_blades": 4, "eos": [0, 1, 2], "families": [1, 2], "whitehead_limit": 1.5, "point": 1,
+             "roms": {"paper": {"solve": "identified", "families": {}}}}
+    summary = {"campaign": "x", "response": block if response else None}
+    (tmp_path / "summary.json").write_text(json.dumps(summary), encoding="utf-8")
+    return tmp_path
+
+
+@pytest.mark.parametrize("argv, expected", [
+    (["--eo", "3"], "--eo '3': expected one of 0, 1, 2"),
+    (["--eo", "1,-1"], "--eo '-1': expected one of 0, 1, 2"),
+    (["--family", "4"], "--family '4': expected one of 1, 2"),
+    (["--family", "one"], "--family 'one': expected one of 1, 2"),
+])
+def test_bad_eo_or_family_is_refused_in_one_line(tmp_path, capsys, argv, expected):
+    line = _error_line(capsys, ["response", str(_fake_out(tmp_path)), *argv])
+    assert expected in line
+    assert not (tmp_path / "response.csv").exists()
+
+
+def test_out_dir_without_the_runs_modes_is_refused(tmp_path, capsys):
+    line = _error_line(capsys, ["response", str(tmp_path)])
+    assert "no summary.json" in line and str(tmp_path) in line
+    line = _error_line(capsys, ["response", str(_fake_out(tmp_path, response=False))])
+    assert "no 'response' block" in line
+
+
+@pytest.fixture(scope="module")
+def small_run(tmp_path_factory):
+    root = tmp_path_factory.mktemp("response")
+    x, o, s = root / "X", root / "O", root / "S"
+    assert main(["lab", "simulate", "--level", "coarse", "--blades", "4", "--grid", "3x7", "--known", "1,3",
+                 "--realism", "ideal", "--seed", "5", "--out", str(x)]) == 0
+    assert main(["run", str(x), *RUN_ARGS, "--out", str(o), "--cache-dir", str(s)]) == 0
+    return x, o, s
+
+
+def _direct_peaks(phi, f_hz, zeta, force, band, n=4001):
+    """Each blade's largest |X| over a dense grid of the band by a direct solve of (Ω² − ω² + iω 2ZΩ) q = Φᵀ F,
+    X = Φ q (modal coordinates: K = Ω², M = I, C = 2ZΩ), refined on a finer grid around each maximum."""
+    w_r = 2 * math.pi * f_hz
+
+    def amp(f):
+        w = 2 * math.pi * f
+        A = np.diag(w_r**2 - w**2 + 2j * zeta * w_r * w)
+        return np.abs(phi @ np.linalg.solve(A, phi.T @ force))
+
+    grid = np.linspace(*band, n)
+    table = np.array([amp(f) for f in grid])
+    peaks = []
+    for j in range(phi.shape[0]):
+        k = int(np.argmax(table[:, j]))
+        fine = np.linspace(grid[max(k - 1, 0)], grid[min(k + 1, n - 1)], 801)
+        peaks.append(max(amp(f)[j] for f in fine))
+    return np.array(peaks)
+
+
+def test_run_response_matches_a_direct_harmonic_solve(small_run, capsys):
+    from rom.forced import blade_modes, family_damping
+
+    x, o, s = small_run
+    summary = json.loads((o / "summary.json").read_text(encoding="utf-8"))
+    block = summary["response"]
+    assert block["whitehead_limit"] == pytest.approx((1 + math.sqrt(4)) / 2)
+    assert set(block["not_computed"]) == {"af_ci90", "p_worst", "af_truth"}
+    assert any(sec["id"] == "response" for sec in summary["sections"])
+    # the command reads the run and recomputes nothing
+    assert main(["response", str(o), "--family", "1"]) == 0
+    rows = list(csv.DictReader((o / "response.csv").open(encoding="utf-8")))
+    assert [(r["family"], r["eo"]) for r in rows] == [("1", "0"), ("1", "1"), ("1", "2")]
+    assert (o / "response.png").stat().st_size > 0
+    # the same modes, from the store (nothing recomputed), and the tuned disk solved here
+    opts = RunOptions(cache_dir=s, n_patterns=3, refine=0, rom="paper", method="knn")
+    res, runner = run_nodes(read_campaign(x), [names.full("identified"), names.DISK_CYCLIC, names.BLADE_RUBIN,
+                                               names.BASELINE, names.DELTA_ALL, names.N_FULL_MODES], opts)
+    assert not [n for n in runner.computed if n.startswith(names.FULL)]
+    delta = res[names.DELTA_ALL]
+    tuned = solve_assembly(res[names.DISK_CYCLIC], res[names.FE_MODEL], res[names.BLADE_RUBIN],
+                           [res[names.BASELINE]] * 4, np.tile(delta.mean(axis=0), (4, 1)),
+                           res[names.N_FULL_MODES]).modes
+    fam = block["roms"]["paper"]["families"]
+    bands = [fam[k]["band_hz"] for k in ("1", "2", "3")]
+    ratios = [fam[k]["damping_ratio"] for k in ("1", "2", "3")]
+    eo, band = 2, fam["1"]["band_hz"]
+    force = np.exp(2j * math.pi * eo * np.arange(4) / 4)
+    peaks = {}
+    for which, modes in (("mistuned", res[names.full("identified")].modes), ("tuned", tuned)):
+        bm = blade_modes(modes, 0.01, 1)
+        z = family_damping(bm.frequencies_hz, bands, ratios)
+        peaks[which] = _direct_peaks(bm.shapes, bm.frequencies_hz, z, force, band)
+    ref = fam["1"]["eo"][str(eo)]
+    assert peaks["tuned"].max() / peaks["tuned"].min() == pytest.approx(1.0, rel=1e-3)  # tuned: equal blades
+    assert ref["af"] == pytest.approx(peaks["mistuned"].max() / peaks["tuned"].max(), rel=2e-3)
+    assert ref["worst_blade"] == int(np.argmax(peaks["mistuned"])) + 1
+    # an AF only where the tuned disk resonates inside the band: a tuned peak at the band's edge is the flank of
+    # a neighbouring family (measured on this disk: family 2's tuned peak sat on its band's top at every EO)
+    for f in fam.values():
+        lo, hi = f["band_hz"]
+        for v in f.get("eo", {}).values():
+            inside = min(v["tuned_peak_hz"] - lo, hi - v["tuned_peak_hz"]) > 1e-3 * (hi - lo)
+            assert (v["af"] is not None) == inside, (f["band_hz"], v)
