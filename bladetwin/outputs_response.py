@@ -29,13 +29,16 @@ def _num(v: float):
     return None if not np.isfinite(v) else float(v)
 
 
-def _eo_entry(r, i: int, e: int) -> dict:
-    """One (family, EO) of a ROM: its AF, worst blade and peaks, or why it has no AF."""
+def _eo_entry(r, i: int, e: int, limit: float) -> dict:
+    """One (family, EO) of a ROM: its AF, worst blade and peaks, or why it has no AF; ``beyond_whitehead`` where
+    the AF exceeds Whitehead's single-family ``limit`` (the band then holds more than the family's modes)."""
     entry = {"af": _num(r.af[i, e]), "worst_blade": int(r.worst_blade[i, e]), "peak_hz": _num(r.peak_hz[i, e]),
              "tuned_peak_hz": _num(r.tuned_peak_hz[i, e])}
     if entry["af"] is None:
         entry["no_af"] = ("the tuned disk's peak lies at the band's edge: the family has no resonance at the "
                           "loaded point at this engine order")
+    elif entry["af"] > limit:
+        entry["beyond_whitehead"] = True
     return entry
 
 
@@ -46,7 +49,7 @@ def response_summary(resp) -> dict:
     ``peak_hz`` and ``tuned_peak_hz`` (Hz), with ``af`` null and ``no_af`` saying why where the tuned peak lies
     at the band's edge; a family the solves could not cover holds ``refused`` instead.
     """
-    roms = {}
+    roms, whitehead = {}, 0.5 * (1 + math.sqrt(resp.n_blades))
     for r in resp.roms:
         fams = {}
         for i, fam in enumerate(resp.families):
@@ -54,10 +57,10 @@ def response_summary(resp) -> dict:
             if r.refused[i]:
                 entry["refused"] = r.refused[i]
             else:
-                entry["eo"] = {str(eo): _eo_entry(r, i, e) for e, eo in enumerate(resp.eos)}
+                entry["eo"] = {str(eo): _eo_entry(r, i, e, whitehead) for e, eo in enumerate(resp.eos)}
             fams[str(fam)] = entry
         roms[r.rom] = {"solve": r.solve, "families": fams}
-    return {"n_blades": resp.n_blades, "point": resp.point, "whitehead_limit": 0.5 * (1 + math.sqrt(resp.n_blades)),
+    return {"n_blades": resp.n_blades, "point": resp.point, "whitehead_limit": whitehead,
             "families": list(resp.families), "eos": list(resp.eos), "damping_source": resp.damping_source,
             "exported": resp.roms[0].rom, "roms": roms, "not_computed": list(NOT_COMPUTED)}
 
@@ -114,6 +117,11 @@ def response_section(resp, out: Path) -> tuple[dict, dict]:
     table = write_csv(out / "response_worst.csv", WORST_HEADER, worst_rows(block))
     refused = [f"{rom} ROM, {f['refused']}" for rom, r in block["roms"].items()
                for f in r["families"].values() if "refused" in f]
+    beyond = [f"{rom} ROM family {fam} EO {eo}" for rom, r in block["roms"].items()
+              for fam, f in r["families"].items() for eo, v in f.get("eo", {}).items() if v.get("beyond_whitehead")]
+    if beyond:
+        refused.append(f"Beyond Whitehead's single-family limit, so suspect (the band holds more than the family's "
+                       f"modes, or the tuned peak is weak at the loaded point): {', '.join(beyond)}.")
     text = [f"Forced response under engine-order excitation (a travelling wave at blade point {block['point']} of "
             f"every blade, EO 0..{max(block['eos'])}) and the mistuning amplification factor: the worst blade's peak "
             "over the tuned disk's (every joint with the films' mean pattern, every blade the mean blade), family "

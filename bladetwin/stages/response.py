@@ -13,6 +13,7 @@ A family is refused, with its reason, where the solves may miss a mode of its ba
 
 from __future__ import annotations
 
+import itertools
 from dataclasses import dataclass
 
 import numpy as np
@@ -25,7 +26,8 @@ from .full import FullSolve, solve_assembly
 from .graph import Node
 from .rom_update import updated_blade
 
-__all__ = ["N_FAMILIES", "POINT", "ROMResponse", "Response", "tuned_node", "response_node", "add_response_node"]
+__all__ = ["N_FAMILIES", "POINT", "ROMResponse", "Response", "refuse_overlapping", "tuned_node", "response_node",
+           "add_response_node"]
 
 #: Families the run computes by default (the lowest), and the blade point loaded and read on every blade.
 N_FAMILIES, POINT = 3, 1
@@ -135,6 +137,28 @@ def _at_edge(f_hz: float, band) -> bool:
     return min(f_hz - lo, hi - f_hz) <= 1e-3 * (hi - lo)
 
 
+def refuse_overlapping(bands: np.ndarray, families, refused: list) -> list:
+    """``refused`` with every family whose band overlaps another's refused too.
+
+    Families are the k-th resonance per nodal diameter (:func:`rom.forced.family_band`); where a disk-dominated
+    mode interleaves at some diameters, that ordering mixes two families and their bands overlap (the updated
+    ROM of the bundled campaign: family 2 spanned 468–1234 Hz, family 3 631–1282 Hz). A mode of both bands then
+    belongs to neither family alone: no AF of either is attributable.
+    """
+    out = list(refused)
+    for i, j in itertools.combinations(range(len(families)), 2):
+        if refused[i] or refused[j]:
+            continue
+        lo, hi = max(bands[i][0], bands[j][0]), min(bands[i][1], bands[j][1])
+        if lo < hi:
+            why = (f"the bands of families {families[i]} and {families[j]} overlap ({lo:.6g}–{hi:.6g} Hz): ordering "
+                   "the resonances per nodal diameter mixed them (the solves carry no blade energy to tell blade "
+                   "and disk families apart)")
+            out[i] = out[i] or f"family {families[i]}: {why}"
+            out[j] = out[j] or f"family {families[j]}: {why}"
+    return out
+
+
 def _rom_response(rom: str, solve: str, mistuned, tuned, families, eos, measured) -> ROMResponse:
     """One ROM's AFs: ``mistuned`` and ``tuned`` are :class:`rom.fe_assembly.AssemblyModes`."""
     mis0, tun0 = blade_modes(mistuned, 0.01, POINT), blade_modes(tuned, 0.01, POINT)
@@ -146,7 +170,10 @@ def _rom_response(rom: str, solve: str, mistuned, tuned, families, eos, measured
         band, why = _family(tun0, mis0, fam, solve)
         refused.append(why)
         if band is not None:
-            bands[i], zeta[i] = band, _band_damping(band, *measured[:2])
+            bands[i] = band
+    refused = refuse_overlapping(bands, families, refused)
+    for i in np.flatnonzero([not r for r in refused]):
+        zeta[i] = _band_damping(bands[i], *measured[:2])
     ok = np.isfinite(zeta)
     if ok.any():
         mis = blade_modes(mistuned, family_damping(mis0.frequencies_hz, bands[ok], zeta[ok]), POINT)
@@ -159,6 +186,7 @@ def _rom_response(rom: str, solve: str, mistuned, tuned, families, eos, measured
                     continue  # no resonance of the family in the band: a ratio of two flanks is no AF
                 af[i, e], worst[i, e] = a.af, a.worst_blade
                 peak[i, e] = a.mistuned.peak_hz[a.worst_blade - 1]
+    bands[[bool(r) for r in refused]] = np.nan
     return ROMResponse(rom, solve, bands, zeta, af, worst, peak, tpeak, tuple(refused))
 
 

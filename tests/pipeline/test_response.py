@@ -129,3 +129,17 @@ def test_run_response_matches_a_direct_harmonic_solve(small_run, capsys):
         for v in f.get("eo", {}).values():
             inside = min(v["tuned_peak_hz"] - lo, hi - v["tuned_peak_hz"]) > 1e-3 * (hi - lo)
             assert (v["af"] is not None) == inside, (f["band_hz"], v)
+
+
+def test_families_whose_bands_overlap_are_both_refused():
+    """Two families' bands that overlap hold a mode neither owns alone (the bundled updated ROM's families 2 and
+    3: 468–1234 and 631–1282 Hz): both are refused, with the overlap named; a disjoint family keeps its AF."""
+    from bladetwin.stages.response import refuse_overlapping
+
+    bands = np.array([[190.0, 240.0], [468.0, 1234.0], [631.0, 1282.0]])
+    out = refuse_overlapping(bands, (1, 2, 3), ["", "", ""])
+    assert out[0] == ""
+    assert all("overlap (631–1234 Hz)" in w for w in out[1:]), out
+    # a family refused already keeps its own reason and does not refuse its neighbour
+    out = refuse_overlapping(bands, (1, 2, 3), ["", "family 2: solve more modes", ""])
+    assert out == ["", "family 2: solve more modes", ""]
