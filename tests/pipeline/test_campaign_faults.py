@@ -27,6 +27,18 @@ def pristine(tmp_path_factory):
     return root
 
 
+#: The runs below check what a fault does to the summary and the report, not the figures: the paper's k-NN alone, and
+#: no figures drawn (the report is written all the same).
+RUN = ["run", "--refine", "0", "--n", "4", "--rom", "paper", "--method", "knn", "--no-figures"]
+
+
+@pytest.fixture(scope="module")
+def store(pristine):
+    """One store for the module's runs: what a fault leaves unchanged (the other files' EMA, the reduced models)
+    is computed once; what it changes has other inputs, so other keys, and is computed again."""
+    return pristine.parent / "store"
+
+
 @pytest.fixture
 def camp(pristine, tmp_path):
     dst = tmp_path / "camp"
@@ -149,7 +161,7 @@ def test_4_unusable_films_are_refused(camp, capsys, fault, needles):
     _refused(camp, capsys, *needles)
 
 
-def test_4_a_16_bit_scan_is_read_on_its_metadatas_scale_and_says_so(camp, tmp_path, capfd):
+def test_4_a_16_bit_scan_is_read_on_its_metadatas_scale_and_says_so(camp, store, tmp_path, capfd):
     """The same film as 16 bits (× 257): read as 8-bit, with a warning on stderr (one line), in summary.json and
     in the report; the contact grid is the 8-bit scan's."""
     import numpy as np
@@ -163,8 +175,7 @@ def test_4_a_16_bit_scan_is_read_on_its_metadatas_scale_and_says_so(camp, tmp_pa
     Image.fromarray(image.astype(np.uint16) * 257).save(path)
     capfd.readouterr()
     out = tmp_path / "out"
-    assert main(["run", str(camp), "--refine", "0", "--n", "4", "--rom", "paper", "--method", "knn", "--out", str(out),
-                 "--cache-dir", str(tmp_path / "store"), "--quiet"]) == 0
+    assert main([*RUN, str(camp), "--out", str(out), "--cache-dir", str(store), "--quiet"]) == 0
     err = [line for line in capfd.readouterr().err.splitlines() if "joint_01_L.png" in line]
     assert len(err) == 1 and err[0].startswith("bladetwin: warning: film ") and "16-bit" in err[0], err
     summary = json.loads((out / "summary.json").read_text())
@@ -188,13 +199,12 @@ def test_6_units_mixed_across_files_without_a_manifest_label(camp, capsys):
     _refused(camp, capsys, "blade_02.uff", "FRF units", "m/s/N")
 
 
-def test_7_a_joint_without_its_d1b_test_gets_a_note(camp, tmp_path, capsys):
+def test_7_a_joint_without_its_d1b_test_gets_a_note(camp, store, tmp_path, capsys):
     doc = _manifest(camp)
     doc["tests"] = [t for t in doc["tests"] if not (t["type"] == "d1b" and t["joint"] == 2)]
     _write_manifest(camp, doc)
     out = tmp_path / "out"
-    assert main(["run", str(camp), "--refine", "0", "--n", "4", "--rom", "paper", "--method", "knn", "--out", str(out),
-                 "--cache-dir", str(tmp_path / "store")]) == 0
+    assert main([*RUN, str(camp), "--out", str(out), "--cache-dir", str(store)]) == 0
     summary = json.loads((out / "summary.json").read_text())
     assert any("Joints [2]: no disk-one-blade test" in n for n in summary["notes"])
     assert "no disk-one-blade test" in (out / "report.html").read_text()
