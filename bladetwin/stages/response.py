@@ -172,6 +172,8 @@ def _rom_response(rom: str, solve: str, mistuned, tuned, families, eos, measured
         if band is not None:
             bands[i] = band
     refused = refuse_overlapping(bands, families, refused)
+    if not measured[0].size:
+        refused = [r or f"family {fam}: {measured[2]}" for fam, r in zip(families, refused, strict=True)]
     for i in np.flatnonzero([not r for r in refused]):
         zeta[i] = _band_damping(bands[i], *measured[:2])
     ok = np.isfinite(zeta)
@@ -220,7 +222,10 @@ def response_node(delta_all: np.ndarray, paper: FullSolve, tuned_paper, exported
     **fits : TestFit
         The EMA of the full-assembly test (``assembly``) or of the disk–one-blade tests: the families' damping.
     """
-    measured = _measured_damping(fits)
+    try:
+        measured = _measured_damping(fits)
+    except ROMError as exc:  # no damping to give the families: each is refused with the reason, the run goes on
+        measured = (np.zeros(0), np.zeros(0), str(exc))
     n = int(delta_all.shape[0])
     families, eos = tuple(range(1, n_families + 1)), tuple(range(n // 2 + 1))
     roms = []

@@ -143,3 +143,23 @@ def test_families_whose_bands_overlap_are_both_refused():
     # a family refused already keeps its own reason and does not refuse its neighbour
     out = refuse_overlapping(bands, (1, 2, 3), ["", "family 2: solve more modes", ""])
     assert out == ["", "family 2: solve more modes", ""]
+
+
+def test_a_run_whose_ema_gives_no_damping_refuses_every_family_and_goes_on(small_run):
+    """Without a measured damping ratio the AF has no damping to use: each family is refused with the reason (the
+    run's other results stand), instead of the node failing the run."""
+    from types import SimpleNamespace
+
+    from bladetwin.stages.response import response_node
+
+    x, _, s = small_run
+    opts = RunOptions(cache_dir=s, n_patterns=3, refine=0, rom="paper", method="knn")
+    res, _ = run_nodes(read_campaign(x), [names.full("identified"), names.RESPONSE_TUNED_PAPER, names.DELTA_ALL],
+                       opts)
+    undamped = SimpleNamespace(model=SimpleNamespace(frequencies_hz=np.array([200.0]),
+                                                     damping_ratio=np.array([np.nan])))
+    resp = response_node(res[names.DELTA_ALL], res[names.full("identified")], res[names.RESPONSE_TUNED_PAPER],
+                         paper_solve="identified", assembly=undamped)
+    (paper,) = resp.roms
+    assert all("no EMA mode with a damping ratio" in why for why in paper.refused), paper.refused
+    assert np.all(np.isnan(paper.af))
