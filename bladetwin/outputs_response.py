@@ -12,6 +12,7 @@ from pathlib import Path
 
 import matplotlib.pyplot as plt
 import numpy as np
+from matplotlib.lines import Line2D
 
 from .output_files import save_figure, write_csv
 
@@ -20,7 +21,7 @@ __all__ = ["RESPONSE_HEADER", "WORST_HEADER", "NOT_COMPUTED", "response_summary"
 
 #: ``response.csv``'s columns (one row per ROM, family and EO) and the report's worst-EO table's.
 RESPONSE_HEADER = ["rom", "family", "eo", "af", "worst_blade", "peak_hz", "tuned_peak_hz", "damping_ratio"]
-WORST_HEADER = ["rom", "family", "worst eo", "af", "worst blade", "damping_ratio"]
+WORST_HEADER = ["ROM", "family", "worst engine order", "amplification factor", "worst blade", "damping ratio"]
 #: What the block does not hold yet (the posterior's samples are not re-solved, the truth's tuned disk not solved).
 NOT_COMPUTED = ("af_ci90", "p_worst", "af_truth")
 
@@ -90,23 +91,34 @@ def worst_rows(block: dict) -> list[list]:
 
 
 def plot_response(block: dict, eos=None, families=None):
-    """AF against EO, one panel per family, each ROM a line, Whitehead's limit (1 + √N)/2 dashed."""
+    """AF against EO, one panel per family, each ROM a line of its own colour in every panel, Whitehead's limit
+    (1 + √N)/2 dashed; a panel without an AF says so (the report's text gives each reason)."""
     fams = [int(f) for f in block["families"] if families is None or int(f) in families]
-    fig, axes = plt.subplots(1, len(fams), figsize=(3.6 * len(fams) + 0.6, 3.4), squeeze=False, sharey=True)
+    fig, axes = plt.subplots(1, len(fams), figsize=(3.6 * len(fams) + 0.6, 3.6), squeeze=False, sharey=True)
+    style = {rom: (f"C{k}", "os^"[k % 3]) for k, rom in enumerate(block["roms"])}
     for ax, fam in zip(axes[0], fams, strict=True):
-        for (rom, r), marker in zip(block["roms"].items(), "os^", strict=False):
+        drawn = False
+        for rom, r in block["roms"].items():
             pts = sorted((int(eo), v["af"]) for eo, v in r["families"][str(fam)].get("eo", {}).items()
                          if (eos is None or int(eo) in eos) and v["af"] is not None)
             if pts:
-                ax.plot(*zip(*pts, strict=True), marker=marker, label=f"{rom} ROM")
-        ax.axhline(block["whitehead_limit"], ls="--", color="0.4", label="Whitehead (1+√N)/2")
-        ax.axhline(1.0, ls=":", color="0.6", label="tuned (AF = 1)")
+                ax.plot(*zip(*pts, strict=True), marker=style[rom][1], color=style[rom][0])
+                drawn = True
+        if not drawn:
+            ax.text(0.5, 0.78, "no amplification factor\n(the text gives why)", transform=ax.transAxes,
+                    ha="center", va="center", fontsize=8, color="0.3",
+                    bbox={"facecolor": "white", "edgecolor": "0.8", "boxstyle": "round"})
+        ax.axhline(block["whitehead_limit"], ls="--", color="0.4")
+        ax.axhline(1.0, ls=":", color="0.6")
         ax.set_title(f"family {fam}")
         ax.set_xlabel("engine order")
         ax.set_xticks([int(e) for e in block["eos"] if eos is None or int(e) in eos])
     axes[0][0].set_ylabel("amplification factor")
-    axes[0][-1].legend(fontsize=8)
-    fig.tight_layout()
+    handles = [Line2D([], [], color=c, marker=m, label=f"{rom} ROM") for rom, (c, m) in style.items()]
+    handles += [Line2D([], [], ls="--", color="0.4", label="Whitehead (1+√N)/2"),
+                Line2D([], [], ls=":", color="0.6", label="tuned (AF = 1)")]
+    fig.legend(handles=handles, loc="lower center", ncol=len(handles), fontsize=8, frameon=False)
+    fig.tight_layout(rect=(0, 0.08, 1, 1))
     return fig
 
 
