@@ -129,6 +129,13 @@ def response_section(resp, out: Path) -> tuple[dict, dict]:
     table = write_csv(out / "response_worst.csv", WORST_HEADER, worst_rows(block))
     refused = [f"{rom} ROM, {f['refused']}" for rom, r in block["roms"].items()
                for f in r["families"].values() if "refused" in f]
+    for rom, r in block["roms"].items():
+        for fam, f in r["families"].items():
+            edge = [eo for eo, v in f.get("eo", {}).items() if "no_af" in v]
+            if edge:
+                refused.append(f"{rom} ROM, family {fam}: no amplification factor at EO {', '.join(edge)}: the tuned "
+                               "disk's peak lies on the band's edge (the family has no resonance at the loaded point "
+                               "there; its band likely holds a disk-dominated mode).")
     beyond = [f"{rom} ROM family {fam} EO {eo}" for rom, r in block["roms"].items()
               for fam, f in r["families"].items() for eo, v in f.get("eo", {}).items() if v.get("beyond_whitehead")]
     if beyond:

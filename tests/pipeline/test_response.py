@@ -93,7 +93,13 @@ def test_run_response_matches_a_direct_harmonic_solve(small_run, capsys):
     block = summary["response"]
     assert block["whitehead_limit"] == pytest.approx((1 + math.sqrt(4)) / 2)
     assert set(block["not_computed"]) == {"af_ci90", "p_worst", "af_truth"}
-    assert any(sec["id"] == "response" for sec in summary["sections"])
+    section = next(sec for sec in summary["sections"] if sec["id"] == "response")
+    # every (family, EO) without an AF is named in the report's text with its reason
+    for rom, r in block["roms"].items():
+        for fam, f in r["families"].items():
+            if any("no_af" in v for v in f.get("eo", {}).values()):
+                head = f"{rom} ROM, family {fam}: no amplification factor at EO"
+                assert any(t.startswith(head) and "band's edge" in t for t in section["text"]), section["text"]
     # the command reads the run and recomputes nothing
     assert main(["response", str(o), "--family", "1"]) == 0
     rows = list(csv.DictReader((o / "response.csv").open(encoding="utf-8")))
