@@ -11,12 +11,9 @@ import argparse
 import json
 from pathlib import Path
 
-import matplotlib.pyplot as plt
-
-from .output_files import write_csv
+from .output_files import save_figure, write_csv
 from .outputs_response import RESPONSE_HEADER, plot_response, response_rows
 from .stages import names
-from .util import atomic_savefig
 
 __all__ = ["register", "read_response", "parse_choice"]
 
@@ -83,8 +80,6 @@ def _cmd_response(args: argparse.Namespace) -> int:
     families = parse_choice(args.family, [int(f) for f in block["families"]], "family")
     rows = response_rows(block, eos, families)
     write_csv(out / "response.csv", RESPONSE_HEADER, rows)
-    fig = plot_response(block, eos, families)
-    atomic_savefig(fig, out / "response.png", dpi=110)
-    plt.close(fig)
+    save_figure(lambda: plot_response(block, eos, families), out / "response.png")
     print(f"{out / 'response.csv'}: {len(rows)} rows; {out / 'response.png'}")
     return 0
