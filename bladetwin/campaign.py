@@ -31,7 +31,7 @@ __all__ = ["Campaign", "CampaignError", "FilmEntry", "TestEntry", "read_campaign
 TEST_TYPES = ("blade", "disk", "d1b", "assembly")
 
 #: Keys of a ``[model]`` table naming the academic twin.
-ACADEMIC_MODEL_KEYS = ("family", "level", "n_blades", "grid")
+ACADEMIC_MODEL_KEYS = ("family", "level", "n_blades", "grid", "disk_scale")
 #: Keys of a ``[model]`` table describing an imported FE model (those of ``bladetwin fe export``'s
 #: ``model.toml``, read by :func:`rom.importers.model.load_bladed_disk`), besides ``family`` and ``file``.
 IMPORTED_MODEL_KEYS = ("format", "units", "disk", "blade", "placement", "grids")
@@ -179,7 +179,7 @@ def model_family(model: dict, where: str) -> str:
             raise CampaignError(f"{where}: unknown key(s) {unknown} for family 'academic'; allowed: "
                                 f"{list(ACADEMIC_MODEL_KEYS)} (an imported model says family = 'imported')")
     else:
-        twin = sorted(set(model) & {"level", "n_blades", "grid"})
+        twin = sorted(set(model) & (set(ACADEMIC_MODEL_KEYS) - {"family"}))
         if twin:
             raise CampaignError(f"{where}: key(s) {twin} belong to the academic twin, not to an imported model "
                                 "(its slots and grid come from its files)")

@@ -31,8 +31,13 @@ def model_params(campaign: Campaign) -> AcademicParams:
     if model_family(m, f"{manifest} [model]") != "academic":
         raise CampaignError(f"{manifest} [model]: an imported model has no academic parameters (load_model "
                             "builds it)")
-    return AcademicParams(n_blades=int(m.get("n_blades", campaign.n_blades)), grid=tuple(m.get("grid", campaign.grid)),
-                          level=str(m.get("level", "default")))
+    try:
+        # no disk_scale: the paper's disk, as every manifest written before the key existed was built
+        return AcademicParams.for_blades(int(m.get("n_blades", campaign.n_blades)),
+                                         disk_scale=float(m.get("disk_scale", 1.0)),
+                                         grid=tuple(m.get("grid", campaign.grid)), level=str(m.get("level", "default")))
+    except (TypeError, ValueError) as exc:
+        raise CampaignError(f"{manifest} [model]: {exc}") from None
 
 
 def load_model(campaign: Campaign) -> BladedDisk:

@@ -39,7 +39,7 @@ import numpy as np
 import tomli_w
 
 from ema.uff import write_frfs
-from rom.academic import AcademicParams, build_bladed_disk
+from rom.academic import AcademicParams, build_bladed_disk, disk_scale_for
 from rom.solver import nodal_diameters
 
 from .documents import blade_deltas_pct, jsonable, specimen_truth, weighed
@@ -153,7 +153,7 @@ class CampaignSpec:
 
     def model_params(self) -> AcademicParams:
         """The academic-twin parameters (raises ``ValueError`` naming a bad blade count, grid or level)."""
-        return AcademicParams(n_blades=self.n_blades, grid=tuple(self.grid), level=self.level)
+        return AcademicParams.for_blades(self.n_blades, grid=tuple(self.grid), level=self.level)
 
     def command(self, out: str | Path) -> str:
         """The ``bladetwin lab simulate`` command that regenerates this campaign into ``out``.
@@ -315,7 +315,10 @@ class _CampaignWriter:
                          # what every UFF of the rig holds; `bladetwin run` checks each file against it
                          "frf_units": "m/s/N"},
             "model": {"family": "academic", "level": params.level, "n_blades": params.n_blades,
-                      "grid": list(params.grid)},
+                      "grid": list(params.grid),
+                      # written only where the disk was enlarged to hold the blades (rom.academic.disk_scale_for)
+                      **({"disk_scale": disk_scale_for(params.n_blades)}
+                         if disk_scale_for(params.n_blades) != 1.0 else {})},
             "tests": [],
             "films": [],
             "masses": weighed(self.twin),

@@ -105,7 +105,8 @@ def case_c(
     root = Path(campaign)
     manifest = tomllib.loads((root / "campaign.toml").read_text(encoding="utf-8"))
     model = manifest["model"]
-    params = AcademicParams(n_blades=int(model["n_blades"]), grid=tuple(model["grid"]), level=model["level"])
+    params = AcademicParams.for_blades(int(model["n_blades"]), disk_scale=float(model.get("disk_scale", 1.0)),
+                                       grid=tuple(model["grid"]), level=model["level"])
     with np.load(root / "truth" / "patterns.npz") as z:
         patterns = [ContactPattern(a, b) for a, b in zip(z["L"], z["R"], strict=True)]
     tests = manifest["tests"]

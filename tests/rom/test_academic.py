@@ -1,11 +1,12 @@
 """The academic bladed disk: geometry, conformity, physics facts, and the paper's Table 1."""
 
 import dataclasses
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
 
-from rom.academic import AcademicParams, Material, build_bladed_disk
+from rom.academic import SLOT_SHARE, AcademicParams, Material, build_bladed_disk, disk_scale_for
 from rom.calibration import calibrate_modulus
 from rom.solver import nodal_diameters, solve_modes
 
@@ -125,3 +126,56 @@ def test_calibration_with_known_frequency_skips_the_solve_and_agrees(coarse_bd):
     assert known.E_after == pytest.approx(solved.E_after, rel=1e-12)
     with pytest.raises(ValueError, match="current_hz"):
         calibrate_modulus(coarse_bd.blade, 900.0, current_hz=-1.0)
+
+
+# ------------------------------------------------------------------ disks of many blades (issue 49)
+def test_up_to_24_blades_keep_the_papers_disk():
+    for n in (2, 18, 24):
+        assert disk_scale_for(n) == 1.0
+        assert AcademicParams.for_blades(n) == AcademicParams(n_blades=n)
+
+
+@pytest.mark.parametrize("n", [25, 36, 48, 80])
+def test_a_disk_of_many_blades_grows_until_its_slots_take_the_set_share_of_the_pitch(n):
+    p = AcademicParams.for_blades(n, level="coarse", grid=(3, 7))
+    paper = AcademicParams()
+    pitch = 2 * p.slot_bottom_radius * np.sin(np.pi / n)          # chord between slot centres at the slot bottom
+    assert p.slot_width / pitch == pytest.approx(SLOT_SHARE, rel=1e-12)
+    s = p.slot_bottom_radius / paper.slot_bottom_radius
+    assert s == pytest.approx(disk_scale_for(n), rel=1e-12) and s > 1.0
+    assert p.bore_radius == pytest.approx(s * paper.bore_radius, rel=1e-12)
+    # the same slots and blade: slot depth, blade length, root width, thickness, chord
+    depth = p.disk_outer_radius - p.slot_bottom_radius
+    assert depth == pytest.approx(paper.disk_outer_radius - paper.slot_bottom_radius, rel=1e-12)
+    assert p.blade_length == pytest.approx(paper.blade_length, rel=1e-12)
+    assert (p.slot_width, p.blade_thickness, p.disk_thickness) == (paper.slot_width, paper.blade_thickness,
+                                                                   paper.disk_thickness)
+
+
+def test_the_48_blade_disk_is_built_conforming_with_the_papers_blade():
+    bd = build_bladed_disk(AcademicParams.for_blades(48, level="coarse", grid=(3, 7)))
+    paper_blade = build_bladed_disk(AcademicParams(level="coarse", grid=(3, 7))).blade
+    assert bd.n_slots == 48
+    assert max(bd.interface_gap(s) for s in (1, 17, 48)) <= 1e-9
+    p = bd.params
+    assert bd.disk.mass() == pytest.approx(p.disk_material.rho * p.disk_volume(), rel=1e-3)
+    # the same blade but for its root's bottom arc, flatter on the larger slot-bottom radius
+    assert bd.blade.mass() == pytest.approx(paper_blade.mass(), rel=5e-3)    # measured 2.3e-3
+    assert bd.blade.mass() == pytest.approx(p.blade_material.rho * p.blade_volume(), rel=1e-3)
+
+
+def test_a_manifest_reads_back_the_disk_it_was_simulated_on(tmp_path):
+    from bladetwin.campaign import CampaignError
+    from bladetwin.model import model_params
+
+    def campaign(**model):
+        return SimpleNamespace(model={"family": "academic", "level": "coarse", "n_blades": 36, "grid": [3, 7],
+                                      **model}, root=tmp_path, n_blades=36, grid=(3, 7))
+
+    got = model_params(campaign(disk_scale=disk_scale_for(36)))
+    assert got == AcademicParams.for_blades(36, level="coarse", grid=(3, 7))
+    # without the key, the paper's disk, which cannot hold 36 slots: one line naming the manifest
+    with pytest.raises(CampaignError, match=r"campaign\.toml \[model\]: slot_width"):
+        model_params(campaign())
+    with pytest.raises(CampaignError, match="disk_scale"):
+        model_params(campaign(disk_scale=-1.0))
