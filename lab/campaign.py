@@ -298,7 +298,9 @@ class _CampaignWriter:
         rng = np.random.default_rng(spec.seed)
         # Independent streams per purpose, so that changing one part (say, the film grain) leaves the others.
         rng_pressure, rng_truth, self.rng_damping, self.rng_noise, self.rng_film = rng.spawn(5)
-        say(f"academic twin, level {params.level}, {params.n_blades} blades, grid {params.grid[0]}x{params.grid[1]}")
+        scale = disk_scale_for(params.n_blades)
+        say(f"academic twin, level {params.level}, {params.n_blades} blades, grid {params.grid[0]}x{params.grid[1]}"
+            + (f", disk enlarged ×{scale:.3g} to hold the slots" if scale != 1.0 else ""))
         bd = build_bladed_disk(params)
         u, v = flank_coordinates(bd)
         self.pressure = simulate_pressure(u, v, params.n_blades, rng_pressure, spec.pressure_params())
@@ -314,11 +316,9 @@ class _CampaignWriter:
                          "known_joints": list(known), "generated_by": spec.command(out),
                          # what every UFF of the rig holds; `bladetwin run` checks each file against it
                          "frf_units": "m/s/N"},
+            # disk_scale only where the disk was enlarged to hold the blades (rom.academic.disk_scale_for)
             "model": {"family": "academic", "level": params.level, "n_blades": params.n_blades,
-                      "grid": list(params.grid),
-                      # written only where the disk was enlarged to hold the blades (rom.academic.disk_scale_for)
-                      **({"disk_scale": disk_scale_for(params.n_blades)}
-                         if disk_scale_for(params.n_blades) != 1.0 else {})},
+                      "grid": list(params.grid), **({"disk_scale": scale} if scale != 1.0 else {})},
             "tests": [],
             "films": [],
             "masses": weighed(self.twin),

@@ -167,6 +167,7 @@ def test_the_48_blade_disk_is_built_conforming_with_the_papers_blade():
 def test_a_manifest_reads_back_the_disk_it_was_simulated_on(tmp_path):
     from bladetwin.campaign import CampaignError
     from bladetwin.model import model_params
+    from lab.campaign import CampaignSpec
 
     def campaign(**model):
         return SimpleNamespace(model={"family": "academic", "level": "coarse", "n_blades": 36, "grid": [3, 7],
@@ -174,6 +175,7 @@ def test_a_manifest_reads_back_the_disk_it_was_simulated_on(tmp_path):
 
     got = model_params(campaign(disk_scale=disk_scale_for(36)))
     assert got == AcademicParams.for_blades(36, level="coarse", grid=(3, 7))
+    assert got == CampaignSpec(n_blades=36, grid=(3, 7), level="coarse").model_params()   # what the rig simulates
     # without the key, the paper's disk, which cannot hold 36 slots: one line naming the manifest
     with pytest.raises(CampaignError, match=r"campaign\.toml \[model\]: slot_width"):
         model_params(campaign())
