@@ -20,6 +20,7 @@ from __future__ import annotations
 import argparse
 import json
 import time
+import tomllib
 from pathlib import Path
 
 import _paths  # noqa: F401  (must precede the package imports)
@@ -44,7 +45,8 @@ def campaign(root: Path, n_blades: int, seed: int) -> Path:
 def row(folder: Path) -> dict:
     """Both fits of the campaign's full-assembly test, scored against its truth."""
     truth = load_assembly_truth(folder / "truth")
-    frf = ema.read_uff(next(folder.glob("assembly/*.uff")))
+    manifest = tomllib.loads((folder / "campaign.toml").read_text(encoding="utf-8"))
+    frf = ema.read_uff(folder / next(t for t in manifest["tests"] if t["type"] == "assembly")["file"])
     out: dict = {"n_visible": int(truth.frequencies_hz.size), "outputs": int(frf.H.shape[0]),
                  "inputs": int(frf.H.shape[1]), "lines": int(frf.H.shape[2])}
     for name, families in (("ordinary", False), ("families", True)):

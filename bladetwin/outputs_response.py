@@ -127,26 +127,27 @@ def response_section(resp, out: Path) -> tuple[dict, dict]:
     block = response_summary(resp)
     fig = save_figure(lambda: plot_response(block), out / "response_af.png")
     table = write_csv(out / "response_worst.csv", WORST_HEADER, worst_rows(block))
-    refused = [f"{rom} ROM, {f['refused']}" for rom, r in block["roms"].items()
-               for f in r["families"].values() if "refused" in f]
+    notes = [f"{rom} ROM, {f['refused']}" for rom, r in block["roms"].items()
+             for f in r["families"].values() if "refused" in f]
     for rom, r in block["roms"].items():
         for fam, f in r["families"].items():
-            edge = [eo for eo, v in f.get("eo", {}).items() if "no_af" in v]
-            if edge:
-                refused.append(f"{rom} ROM, family {fam}: no amplification factor at EO {', '.join(edge)}: the tuned "
-                               "disk's peak lies on the band's edge (the family has no resonance at the loaded point "
-                               "there; its band likely holds a disk-dominated mode).")
+            why: dict[str, list[str]] = {}   # each reason the block gives (_eo_entry's no_af), with its EOs
+            for eo, v in f.get("eo", {}).items():
+                if "no_af" in v:
+                    why.setdefault(v["no_af"], []).append(eo)
+            notes += [f"{rom} ROM, family {fam}: no amplification factor at EO {', '.join(eos)}: {reason} (its band "
+                      "likely holds a disk-dominated mode)." for reason, eos in why.items()]
     beyond = [f"{rom} ROM family {fam} EO {eo}" for rom, r in block["roms"].items()
               for fam, f in r["families"].items() for eo, v in f.get("eo", {}).items() if v.get("beyond_whitehead")]
     if beyond:
-        refused.append(f"Beyond Whitehead's single-family limit, so suspect (the band holds more than the family's "
+        notes.append(f"Beyond Whitehead's single-family limit, so suspect (the band holds more than the family's "
                        f"modes, or the tuned peak is weak at the loaded point): {', '.join(beyond)}.")
     text = [f"Forced response under engine-order excitation (a travelling wave at blade point {block['point']} of "
             f"every blade, EO 0..{max(block['eos'])}) and the mistuning amplification factor: the worst blade's peak "
             "over the tuned disk's (every joint with the films' mean pattern, every blade the mean blade), family "
             f"by family, with each family's damping from {block['damping_source']}. Whitehead's limit "
             f"(1 + √N)/2 = {block['whitehead_limit']:.3f}. Not computed yet: the AF's 90 % interval and each blade's "
-            "probability to be the worst over the posterior, and the truth's AF on a virtual campaign.", *refused]
+            "probability to be the worst over the posterior, and the truth's AF on a virtual campaign.", *notes]
     section = {"id": "response", "title": "Forced response and amplification factor", "text": text,
                "figures": [{"file": fig, "caption": "Amplification factor against engine order, per family, the "
                             "exported ROM and the paper's; Whitehead's limit dashed."}],

@@ -239,6 +239,12 @@ def normalised_participations(part: np.ndarray) -> tuple[np.ndarray, np.ndarray]
     return part / part[pivot, np.arange(part.shape[1])], pivot
 
 
+def _mode_offsets(n_modes: int, n_in: int) -> np.ndarray:
+    """Where each mode's parameters start in :meth:`FamilyWindow.gauss_newton`'s order: f, log ζ, then Re and Im
+    of its n_in − 1 non-pivot participations, 2 n_in in all."""
+    return np.arange(n_modes) * 2 * n_in
+
+
 def _held(f, logz, grad, lo: float, hi: float, n_in: int) -> np.ndarray:
     """Which parameters (in :meth:`FamilyWindow.gauss_newton`'s order) sit at a bound that the descent direction
     ``−grad`` pushes them past: a frequency at the window's edge, a log ζ at the upper bound of :data:`ZETA_BOUNDS`.
@@ -250,7 +256,7 @@ def _held(f, logz, grad, lo: float, hi: float, n_in: int) -> np.ndarray:
     there, a 6-blade campaign's 647 Hz spike stopped at ζ 0.0004 and was kept, 3.6 % from every true mode).
     """
     held = np.zeros(grad.size, bool)
-    at = np.arange(f.size) * 2 * n_in                    # each mode's f; its log ζ follows
+    at = _mode_offsets(f.size, n_in)                      # each mode's f; its log ζ follows
     held[at] = ((f <= lo) & (grad[at] > 0)) | ((f >= hi) & (grad[at] < 0))
     held[at + 1] = (logz >= np.log(ZETA_BOUNDS[1])) & (grad[at + 1] < 0)
     return held
@@ -263,11 +269,12 @@ def _refine(win: FamilyWindow, f, zeta, part, pivot):
     cost, JJ, grad = win.gauss_newton(pole_from_modal(f, np.exp(logz)), part, pivot)
     mu = 1e-3
     for _ in range(MAX_ITER):
-        scale = np.where(np.diag(JJ) > 0, np.diag(JJ), 1.0)
         free = ~_held(f, logz, grad, lo, hi, win.n_in)
+        JJf, gf = JJ[np.ix_(free, free)], grad[free]
+        scale = np.where(np.diag(JJf) > 0, np.diag(JJf), 1.0)
         while True:
             delta = np.zeros(grad.size)
-            delta[free] = -np.linalg.solve(JJ[np.ix_(free, free)] + mu * np.diag(scale[free]), grad[free])
+            delta[free] = -np.linalg.solve(JJf + mu * np.diag(scale), gf)
             f2, logz2, part2 = step_parameters(f, logz, part, pivot, delta)
             f2 = np.clip(f2, lo, hi)
             solved = win.solve(pole_from_modal(f2, np.exp(logz2)), part2)
@@ -422,7 +429,7 @@ def _result(win, window, f, zeta, part, pivot, n_start) -> FamilyFit:
             meat = per_line.T @ per_line * win.Y.size / max(win.Y.size - n_par, 1)
             meat_model = np.einsum("dlk,dlj->kj", drawn, drawn) / len(drawn)
             var = np.maximum(np.diag(bread @ meat @ bread), np.diag(bread @ meat_model @ bread))
-            idx = np.cumsum([0] + [2 + 2 * (win.n_in - 1)] * (n - 1))
+            idx = _mode_offsets(n, win.n_in)
             f_std = np.sqrt(np.clip(var[idx], 0, None))
             z_std = np.sqrt(np.clip(var[idx + 1], 0, None)) * zeta   # d ζ = ζ d log ζ
         except np.linalg.LinAlgError:
