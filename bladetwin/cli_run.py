@@ -86,7 +86,8 @@ def _cmd_run(args) -> int:
         say(f"writing tables{'' if args.no_figures else ', figures'} and the report to {out}")
         res.timings_s["report"] = 0.0
         before = previous_summary(out)
-        stale = remove_stale(out, before, write_outputs(res, out, command=command, figures=not args.no_figures))
+        stale = remove_stale(out, before, write_outputs(res, out, command=command, figures=not args.no_figures,
+                                                          workers=opts.workers))
         if stale:
             say(f"removed {len(stale)} file(s) an earlier run wrote to {out} and this one did not")
         res.timings_s["report"] = time.perf_counter() - t_rep

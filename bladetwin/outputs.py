@@ -25,7 +25,7 @@ from identify.validation import contact_area_fraction, geometric_validation
 from rom.pattern_io import save_patterns
 
 from .methods import FREQUENCY_HEADER, POSTERIOR_HEADER, methods_summary, posterior_frequency_rows, posterior_rows
-from .output_files import NO_FIGURES_NOTE, blank, save_figure, write_csv
+from .output_files import NO_FIGURES_NOTE, blank, figures_deferred, save_figure, write_csv
 from .outputs_calibration import calibration_section, calibration_summary
 from .outputs_ema import ema_modes, ema_section
 from .outputs_response import response_section
@@ -278,15 +278,18 @@ def _posterior_section(res: RunResult, out: Path, methods: dict) -> list[dict]:
                          "posterior (model error not included)."}]}]
 
 
-def write_outputs(res: RunResult, out: Path, *, command: str = "bladetwin run", figures: bool = True) -> dict:
+def write_outputs(res: RunResult, out: Path, *, command: str = "bladetwin run", figures: bool = True,
+                  workers: int = 1) -> dict:
     """Write every output of a run into ``out`` and return the summary (also written to summary.json).
 
     ``figures=False`` (``bladetwin run --no-figures``) writes everything but the PNG figures, and says so.
+    ``workers``: processes that draw the figures (:func:`bladetwin.output_files.figures_deferred`).
     """
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     notes: list[str] = [] if figures else [NO_FIGURES_NOTE]
-    with recording() as texts, figures_drawn(figures):  # a figure's or a table's warning: to summary.json too
+    # a figure's or a table's warning: to summary.json too (the figures are drawn when the inner block ends)
+    with recording() as texts, figures_drawn(figures), figures_deferred(workers):
         sections = [ema_section(res, out, notes), calibration_section(res, out), _patterns_section(res, out)]
         sections = [x for x in sections if x is not None]
         ident, joints, geo = _identification_section(res, out)

@@ -106,8 +106,9 @@ def append_local(disk: CyclicDiskModel, slots: list[RitzSlot], new: list[np.ndar
         c0 += u.shape[1]
         order = (np.arange(N) - s) % N
         sl.L = np.hstack([sl.L, u])
-        sl.CL = np.concatenate([sl.CL, CX[order][:, :, cs]], axis=2)
-        sl.DL = np.concatenate([sl.DL, DX[order][:, :, cs]], axis=2)
+        # Index the slot's own columns first: CX[order] alone would copy every slot's columns N times.
+        sl.CL = np.concatenate([sl.CL, CX[order, :, cs]], axis=2)
+        sl.DL = np.concatenate([sl.DL, DX[order, :, cs]], axis=2)
 
 
 def global_cc(disk: CyclicDiskModel, n_cc: int):

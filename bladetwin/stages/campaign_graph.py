@@ -172,9 +172,10 @@ def _ema_nodes(p: Pipeline, campaign) -> None:
         name = names.test_name(t)
         # the assembly's fit, version 3: dense families resolved (ema.fit(families=True)), missed ones filled in;
         # every test, +1: local shapes less the far modes where that fits better (ema.lsfd.local_residues);
-        # the assembly, 5: moved starting modes and off-line scan modes refused
+        # the assembly, 5: moved starting modes and off-line scan modes refused; 6: the family fit held at the
+        # damping bound (projected Levenberg–Marquardt)
         p.add(Node(names.ema(name), measured.fit_test, {"test": names.test_source(name)}, label=f"EMA {name}",
-                   version=5 if t.type == "assembly" else 2))
+                   version=6 if t.type == "assembly" else 2))
     p.add(Node(names.BLADE_TABLE, measured.blade_table, _ema_of(campaign, "blade"), where="parent"))
 
 
@@ -339,7 +340,8 @@ def _update_nodes(p: Pipeline, campaign, opts: RunOptions) -> list[str]:
         # Only the exported ROM's update warns: the controls would repeat its warnings with other figures.
         p.add(Node(names.rom_update(name), rom_update.update_node,
                    {**rom, "stiffness": names.ROM_UPDATE_STIFFNESS, "patterns": pats, **d1b},
-                   {"warn": name == "answer"}, label=f"in-situ corrections ({what} patterns)"))
+                   {"warn": name == "answer"}, label=f"in-situ corrections ({what} patterns)",
+                   version=3))  # version 3: the warnings name the joint's pattern before the files
     solves = {"updated": (_answer(opts, "experimental"), "answer")}
     if "reference" in sets:
         solves["updated_reference"] = (names.REFERENCE, "reference")

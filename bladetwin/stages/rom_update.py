@@ -94,7 +94,8 @@ def update_node(disk, blade, dataset: Dataset, features: Features, delta_all: np
                               "keeps Eq. 19's free-test values, uncalibrated", UserWarning, stacklevel=2)
             continue
         fit = fit_corrections(upd, patterns[j - 1], delta_all[j - 1], y, sigma[j])
-        for text in calibration_warnings(j, fit, free_hz) if warn else []:
+        filmed = stiffness is not None and j in stiffness.joints  # its pattern is the film's
+        for text in calibration_warnings(j, fit, free_hz, filmed=filmed) if warn else []:
             warnings.warn(text, UserWarning, stacklevel=2)
         eps[j - 1], done[j - 1], res[j - 1] = fit.correction, True, fit.residual_pct
         f_paper, _ = tracked_sensitivity(tracker, patterns[j - 1], delta_all[j - 1])

@@ -121,5 +121,12 @@ def test_unusable_calibration_data_is_named_by_blade_and_mode():
                     dominant_mode=np.zeros(n, int) + np.array([0, 1, 0, 0]))
     texts = calibration_warnings(7, fit, np.array([90.0, 180.0, 600.0]))
     assert any("blade 7" in t and "lacks tracked mode 2" in t and "free mode 2" in t for t in texts), texts
-    assert any("blade 7, free mode 1" in t and "+15.0 %" in t for t in texts), texts
+    assert any("blade 7, free mode 1" in t and "+15.0 %" in t and "identified pattern" in t for t in texts), texts
     assert len(texts) == 2
+    filmed = calibration_warnings(7, fit, np.array([90.0, 180.0, 600.0]), filmed=True)
+    assert any("blade 7, free mode 1" in t and "joint 7's film" in t for t in filmed), filmed
+    # a large correction of a mode whose own tracked mode is missing: one line, on the missing mode
+    weak = InSituFit(correction=np.r_[0.0, -0.17, 0.0], frequencies_hz=fit.frequencies_hz,
+                     measured_hz=fit.measured_hz, blade_share=fit.blade_share, dominant_mode=fit.dominant_mode)
+    texts = calibration_warnings(7, weak, np.array([90.0, 180.0, 600.0]))
+    assert len(texts) == 1 and "lacks tracked mode 2" in texts[0] and "-17.0 %" in texts[0], texts
