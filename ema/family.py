@@ -430,8 +430,10 @@ def _result(win, window, f, zeta, part, pivot, n_start) -> FamilyFit:
             meat_model = np.einsum("dlk,dlj->kj", drawn, drawn) / len(drawn)
             var = np.maximum(np.diag(bread @ meat @ bread), np.diag(bread @ meat_model @ bread))
             idx = _mode_offsets(n, win.n_in)
-            f_std = np.sqrt(np.clip(var[idx], 0, None))
-            z_std = np.sqrt(np.clip(var[idx + 1], 0, None)) * zeta   # d ζ = ζ d log ζ
+            # a variance that round-off left at or below 0 (a near-singular bread) is unknown, not exact
+            var = np.where(var > 0, var, np.nan)
+            f_std = np.sqrt(var[idx])
+            z_std = np.sqrt(var[idx + 1]) * zeta   # d ζ = ζ d log ζ
         except np.linalg.LinAlgError:
             pass
     order = np.argsort(f)
