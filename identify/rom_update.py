@@ -429,9 +429,9 @@ def calibration_warnings(blade: int, fit: InSituFit, free_hz: np.ndarray, *, bou
                          filmed: bool = False) -> list[str]:
     """One line per problem of one blade's calibration data, naming the blade and the mode.
 
-    * a blade-dominated tracked mode that its disk–one-blade test lacks: its free mode is then set only by the
-      other tracked modes' small shares of it, which carry the model's errors too (the line gives that free
-      mode's correction where it passes ``bound``);
+    * a blade-dominated tracked mode that its disk–one-blade test lacks, where no found tracked mode is dominated
+      by the same free mode: that free mode is then set only by the other tracked modes' small shares of it,
+      which carry the model's errors too (the line gives its correction where it passes ``bound``);
     * a free mode whose in-situ correction exceeds ``bound``: the test and the model disagree by more than a
       blade's free-test scatter explains. On a blade whose files are right, that is the joint: a pattern
       (identified, or for a ``filmed`` joint its film) that the test does not bear out, since ε absorbs
@@ -445,8 +445,11 @@ def calibration_warnings(blade: int, fit: InSituFit, free_hz: np.ndarray, *, bou
         Whether the blade's joint was filmed (its pattern is the film's, not an identified one).
     """
     out, missing = [], {}
-    for k in np.flatnonzero((fit.blade_share >= BLADE_SHARE_MIN) & ~np.isfinite(fit.measured_hz)):
-        missing.setdefault(int(fit.dominant_mode[k]), int(k))
+    blade_rows = fit.blade_share >= BLADE_SHARE_MIN
+    found = set(fit.dominant_mode[blade_rows & np.isfinite(fit.measured_hz)].tolist())
+    for k in np.flatnonzero(blade_rows & ~np.isfinite(fit.measured_hz)):
+        if int(fit.dominant_mode[k]) not in found:  # another found mode it dominates calibrates it: nothing lost
+            missing.setdefault(int(fit.dominant_mode[k]), int(k))
     for i, k in missing.items():
         far = (f", to {100 * fit.correction[i]:+.1f} % (eigenvalue), beyond ±{100 * bound:.0f} %"
                if abs(fit.correction[i]) > bound else "")

@@ -341,7 +341,7 @@ def _update_nodes(p: Pipeline, campaign, opts: RunOptions) -> list[str]:
         p.add(Node(names.rom_update(name), rom_update.update_node,
                    {**rom, "stiffness": names.ROM_UPDATE_STIFFNESS, "patterns": pats, **d1b},
                    {"warn": name == "answer"}, label=f"in-situ corrections ({what} patterns)",
-                   version=3))  # version 3: the warnings name the joint's pattern before the files
+                   version=4))  # 3: the warnings name the joint's pattern first; 4: none on a mode calibrated otherwise
     solves = {"updated": (_answer(opts, "experimental"), "answer")}
     if "reference" in sets:
         solves["updated_reference"] = (names.REFERENCE, "reference")
