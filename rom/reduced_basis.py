@@ -34,13 +34,12 @@ from scipy.ndimage import gaussian_filter
 from .contact import ContactPattern
 from .fe_assembly import AssemblyModes
 from .modal import dense_modes, single_thread_blas
-from .spring_assembly import SpringD1B, solve_spring_d1b
+from .spring_assembly import TWO_PI, SpringD1B, solve_spring_d1b
 
 __all__ = ["ReducedBasis", "RBModes", "plausible_patterns", "reduce_spring_d1b", "evaluate", "frequency_bounds"]
 
 log = logging.getLogger(__name__)
 
-TWO_PI = 2.0 * np.pi
 
 
 def plausible_patterns(grid: tuple[int, int], n: int, *, seed: int = 0,

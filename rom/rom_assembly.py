@@ -49,6 +49,7 @@ __all__ = [
     "DEFAULT_FORMULATION",
     "ReducedAssembly",
     "assemble_d1b",
+    "d1b_slot",
     "assemble_full",
     "solve_assembly",
     "solve_d1b",
@@ -243,18 +244,30 @@ def assemble_d1b(
     formulation : {"exact", "paper"}
     """
     _check_formulation(formulation)
-    slots = list(disk.meta.get("slots", []))
-    n_sectors = int(disk.meta.get("n_sectors", disk.output_basis.shape[0]))
-    if len(slots) != 1:
-        raise ValueError(f"assemble_d1b needs a disk reduced on exactly one slot, got slots {slots}")
-    ref = int(slots[0])
-    slot = ref if slot is None else check_slot(slot, n_sectors)
-    if slot != ref and not disk.meta.get("cyclic", False):
-        raise ValueError(f"the disk model was reduced for slot {ref} and is not marked cyclic; cannot use slot {slot}")
+    ref, slot, _ = d1b_slot(disk, slot)
     if delta is not None:
         delta = as_delta(delta, blade.m)
     asm = _cb_assembly(disk, blade, {slot: pattern}, {slot: delta}, formulation, {slot: 0}, slot - ref)
     return ReducedAssembly(asm.K, asm.M, asm.out, asm.meas_labels, {**asm.meta, "assembly": "d1b"})
+
+
+def d1b_slot(disk: CraigBamptonModel, slot: int | None) -> tuple[int, int, int]:
+    """(the disk model's own slot, the slot asked for, the number of sectors) of a disk–one-blade model.
+
+    Raises
+    ------
+    ValueError
+        If the disk is not reduced on exactly one slot, or ``slot`` is another slot of a disk not marked cyclic.
+    """
+    slots = list(disk.meta.get("slots", []))
+    n_sectors = int(disk.meta.get("n_sectors", disk.output_basis.shape[0]))
+    if len(slots) != 1:
+        raise ValueError(f"a disk–one-blade model needs a disk reduced on exactly one slot, got slots {slots}")
+    ref = int(slots[0])
+    slot = ref if slot is None else check_slot(slot, n_sectors)
+    if slot != ref and not disk.meta.get("cyclic", False):
+        raise ValueError(f"the disk model was reduced for slot {ref} and is not marked cyclic; cannot use slot {slot}")
+    return ref, slot, n_sectors
 
 
 def assemble_full(

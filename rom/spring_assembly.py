@@ -27,14 +27,13 @@ import numpy as np
 import scipy.linalg as sla
 import scipy.sparse as sp
 
-from .academic import check_slot
 from .contact import ContactPattern
 from .contact_stiffness import ContactStiffness, interface_compliance
 from .craig_bampton import CraigBamptonModel
 from .fe_assembly import AssemblyModes
 from .mistuning import as_delta
 from .modal import dense_modes, single_thread_blas
-from .rom_assembly import check_pattern, grid_shape, measurement_labels
+from .rom_assembly import check_pattern, d1b_slot, grid_shape, measurement_labels
 from .rubin import RubinModel
 
 __all__ = ["SpringD1B", "spring_d1b", "solve_spring_d1b"]
@@ -149,13 +148,7 @@ def spring_d1b(
         raise ValueError(f"stiffness must be a ContactStiffness (N/m³), got {type(stiffness).__name__}")
     if blade.meta.get("contact_compliance"):
         raise ValueError("the blade already carries spring compliance (with_contact_stiffness); pass the bare blade")
-    slots = [int(s) for s in disk.meta.get("slots", [])]
-    n_sec = int(disk.meta.get("n_sectors", disk.output_basis.shape[0]))
-    if len(slots) != 1:
-        raise ValueError(f"the disk must be reduced on exactly one slot, got slots {slots}")
-    slot = slots[0] if slot is None else check_slot(slot, n_sec)
-    if slot != slots[0] and not disk.meta.get("cyclic", False):
-        raise ValueError(f"the disk was reduced for slot {slots[0]} and is not cyclic; cannot use slot {slot}")
+    ref, slot, n_sec = d1b_slot(disk, slot)
     n_i, n_nodes = blade.n_interface, blade.n_interface // 3
     if disk.n_b != n_i:
         raise ValueError(f"disk boundary ({disk.n_b} DOFs) does not match the blade root ({n_i} DOFs)")
@@ -175,7 +168,7 @@ def spring_d1b(
     M[nd:, nd:] = se.M
     root = nd + se.n_modal + np.arange(n_i)
     out = np.zeros((n_sec + blade.n_b - n_i, n))
-    out[:n_sec, :nd] = disk.output_basis[(np.arange(n_sec) - (slot - slots[0])) % n_sec]
+    out[:n_sec, :nd] = disk.output_basis[(np.arange(n_sec) - (slot - ref)) % n_sec]
     out[n_sec + np.arange(blade.n_b - n_i), nd + se.n_modal + n_i + np.arange(blade.n_b - n_i)] = 1.0
     model = SpringD1B(K0, M, S, root.reshape(-1, 3), disk.n_k + np.arange(n_i).reshape(-1, 3),
                       nd + se.n_r + np.arange(blade.m), blade.omega2_tuned.copy(), blade.delta.copy(), out,
