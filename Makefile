@@ -40,6 +40,7 @@ bench-results: $(STAMP)
 	$(BIN)/python benchmarks/rom.py --json docs/results/bench_rom.json
 	$(BIN)/python benchmarks/dataset.py --json docs/results/bench_dataset.json
 	$(BIN)/python benchmarks/posterior.py --json docs/results/bench_posterior.json
+	$(BIN)/python benchmarks/response.py --json docs/results/bench_response.json
 	$(MAKE) results
 
 # docs/results/twin_effects.md (the model against the bundled tests, before and after calibration) and

@@ -4,10 +4,9 @@
 ``make bench-results`` refreshes the benchmarks' files there (``bench_*.json``, each written by a benchmark's
 ``--json``). Every figure in the generated text is a JSON value, rounded for display by the report's one rule
 (:mod:`bladetwin.report_cells`: about 3 significant digits, percentages at most 2 decimals, one number of decimals
-down a column, or along a row where a row holds one quantity). In ``docs/results.md`` the
-row that shows it names its file and key (``source`` column), so a reader (and
-``tests/pipeline/test_results_doc.py``) can check it; the README's blocks are the same rows without that column.
-Nothing here computes a figure: it only formats what the run and the benchmarks measured.
+down a column, or along a row where a row holds one quantity). In ``docs/results.md`` the row that shows it
+names its file and key (``source`` column), so a reader (and ``tests/pipeline/test_results_doc.py``) can check it;
+the README's blocks are the same rows without that column. Nothing here computes a figure: it only formats.
 """
 
 from __future__ import annotations
@@ -23,12 +22,12 @@ from rom.fileio import atomic_path
 from .report_cells import format_column, format_number
 
 __all__ = ["Row", "lookup", "table8_rows", "contact_rows", "rom_rows", "performance_rows", "width_rows",
-           "render_results", "readme_blocks", "update_readme", "main"]
+           "response_rows", "render_results", "readme_blocks", "update_readme", "main"]
 
 #: The benchmark files ``make bench-results`` writes, by the name the tables use.
 BENCHMARKS = {"run": "bench_run.json", "rom": "bench_rom.json", "ema": "bench_ema.json",
               "ema_families": "bench_ema_families.json", "dataset": "bench_dataset.json",
-              "posterior": "bench_posterior.json"}
+              "posterior": "bench_posterior.json", "response": "bench_response.json"}
 _MISSING = "not measured"
 
 
@@ -207,6 +206,9 @@ _PERFORMANCE = (
                         f"{_CYC}.seconds / results[step=fe_disk].seconds"]),
     ("contact posterior of every unfilmed joint, experimental input (s); reference: the k-NN and its refinement",
      "python benchmarks/posterior.py", "bench_posterior.json", ["posterior_s", "knn_s", "ratio"]),
+    ("forced response: AF of every EO × 3 families × 200 posterior samples (s); reference: one case by a direct "
+     "harmonic solve (time per line × lines)", "python benchmarks/response.py", "bench_response.json",
+     ["intervals_s", "direct_case_s", "intervals_s / direct_case_s"]),
     ("EMA, LSCF, 54 outputs × 6400 lines, 100 orders (s); reference: sdypy-EMA", "python benchmarks/ema.py",
      "bench_ema.json", ["lscf_s", "sdypy_lscf_s", "lscf_ratio"]),
     ("EMA of the bundled full-assembly test with dense families resolved (s); reference: the ordinary fit",
@@ -229,6 +231,16 @@ _PERFORMANCE = (
     ("dataset, max relative frequency error vs direct solves", "python benchmarks/dataset.py", "bench_dataset.json",
      ["max_rel_err"]),
 )
+
+
+def response_rows(docs: dict) -> list[Row]:
+    """The amplification factor against the truth twin's, per ROM (``summary.json`` → ``response``)."""
+    keys = (("against_truth.{}.n_cases", "int"), ("against_truth.{}.median_abs_error_pct", "pct"),
+            ("against_truth.{}.in_ci90", "num"), ("roms.{}.largest.af", "num"), ("truth.largest.af", "num"))
+    rows = [(name, [("summary.json", "response." + k.format(rom), f) for k, f in keys])
+            for rom, name in (("updated", "updated ROM"), ("paper", "paper's ROM"))
+            if _value(docs, "summary.json", f"response.against_truth.{rom}.n_cases") is not None]
+    return _by_column(rows, docs)
 
 
 def performance_rows(docs: dict) -> list[Row]:
@@ -255,6 +267,8 @@ _T8_HEADER = ["Table 8", "mean \\|Δf\\| %", "mean MAC", "paired modes", "paper 
 _METHODS_HEADER = ["unfilmed joints vs truth", "contact posterior", "k-NN (refined)", "baseline"]
 _PERF_HEADER = ["what", "measured", "reference", "ratio", "command"]
 _WIDTH_HEADER = ["posterior 90 % width / prior width", "numerical input", "experimental input"]
+_RESPONSE_HEADER = ["AF vs the truth twin's", "(family, EO) cases", "median \\|AF / AF_truth − 1\\| %",
+                    "truth inside the 90 % interval", "largest AF", "truth's largest AF"]
 _ROM_HEADER = ["vs the full-assembly test", "paper's ROM \\|Δf\\| %", "paper's ROM MAC", "paired",
                "updated ROM \\|Δf\\| %", "updated ROM MAC", "paired"]
 
@@ -264,7 +278,7 @@ def _pad(rows: list[Row], n: int) -> list[Row]:
 
 
 def readme_blocks(docs: dict, sources: bool = False) -> dict[str, str]:
-    """The README's generated blocks by marker name: ``table8``, ``contact``, ``rom``, ``performance``.
+    """The README's blocks by marker name: ``table8``, ``contact``, ``rom``, ``response``, ``performance``.
 
     ``sources=True`` gives the same blocks with each table's ``source`` column, as ``docs/results.md`` shows them.
     """
@@ -285,10 +299,15 @@ def readme_blocks(docs: dict, sources: bool = False) -> dict[str, str]:
                  f"({answer}) at the unfilmed joints:", "",
                  *_table(_ROM_HEADER, rom, sources=sources)]
                 if rom else ["The updated ROM did not run (`--rom paper`)."])
+    resp = response_rows(docs)
+    response = ([f"The mistuning amplification factor (AF) per family and engine order ({run}; `summary.json:"
+                 "response`), against the truth twin's own (same force, damping and band rule):", "",
+                 *_table(_RESPONSE_HEADER, _pad(resp, len(_RESPONSE_HEADER) - 1), sources=sources)]
+                if resp else ["No truth AF in this campaign: no check of the amplification factor."])
     perf = [f"{_machine(docs)}; each figure from the command beside it, with the reference it measures in the "
             "same run.", "", *_table(_PERF_HEADER, performance_rows(docs), with_command=True, sources=sources)]
     return {"table8": "\n".join(t8), "contact": "\n".join(contact), "rom": "\n".join(rom_text),
-            "performance": "\n".join(perf)}
+            "response": "\n".join(response), "performance": "\n".join(perf)}
 
 
 def _machine(docs: dict) -> str:
@@ -318,6 +337,7 @@ def render_results(docs: dict) -> str:
              "## Contact at the unfilmed joints", "", blocks["contact"], "",
              *_width_section(docs),
              "## The paper's ROM and the updated ROM", "", blocks["rom"], "",
+             "## The amplification factor", "", blocks["response"], "",
              "## Performance", "", blocks["performance"], "",
              "## The run these figures come from", "",
              f"- command: `{s.get('command', '?')}`; settings: `{json.dumps(s.get('settings', {}))}`",

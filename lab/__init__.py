@@ -7,7 +7,8 @@ It turns a *truth* twin into a measurement campaign (docs/campaign.md):
 - :mod:`lab.truth`: the truth twin (contact springs, FE-level blade variation, damping);
 - :mod:`lab.rig`: virtual hammer tests (mobility FRFs with noise);
 - :mod:`lab.campaign`: a whole campaign on disk (UFF files, films, manifest, truth);
-- :mod:`lab.model_error`: Case C, the ROM with the true patterns against the campaign's EMA.
+- :mod:`lab.model_error`: Case C, the ROM with the true patterns against the campaign's EMA;
+- :mod:`lab.truth_response`: the truth's full-assembly modes, mistuned and tuned, for the amplification factor.
 """
 
 from .campaign import CampaignInfo, CampaignSpec, default_known_joints, simulate_campaign
@@ -25,10 +26,14 @@ from .truth import (
     make_truth_twin,
     solve_truth,
 )
+from .truth_response import ResponseTruth, load_response_truth, tuned_twin
 
 __all__ = [
     "REALISM",
     "BladeVariation",
+    "ResponseTruth",
+    "load_response_truth",
+    "tuned_twin",
     "CampaignInfo",
     "CampaignSpec",
     "FilmMeta",

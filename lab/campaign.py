@@ -17,6 +17,9 @@ truth/assembly_patterns.npz   the same after the blades were re-seated, in the f
 truth/assembly_modes.npz      the full assembly's visible modes: frequencies_hz (n,), exact real shapes at
                               the test's outputs (n_outputs, n), the blades' share of each mode's kinetic
                               energy (n,), and the outputs' (node, direction), (n_outputs, 2)
+truth/response_modes.npz      the forced response's truth (lab.truth_response): every mode of the full
+                              assembly's truth solve, mistuned and tuned (its tuned counterpart), mass-normalised
+                              at every blade measurement point, on the assembly test's day
 truth/films/                  every flank's film scan
 ```
 
@@ -32,42 +35,46 @@ import os
 import shutil
 import tempfile
 from collections.abc import Callable
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
 import tomli_w
 
 from ema.uff import write_frfs
-from rom.academic import AcademicParams, build_bladed_disk, disk_scale_for
+from rom.academic import AcademicParams
+from rom.fe_assembly import AssemblyModes
 from rom.solver import nodal_diameters
 
+from .campaign_spec import (
+    BLADE_MODES,
+    D1B_MODES,
+    DISK_MODES,
+    FULL_FAMILIES,
+    TEST_TYPES,
+    CampaignSpec,
+    CampaignTwin,
+    assembly_solve_modes,
+    campaign_twin,
+    default_known_joints,
+    solved_modes,
+)
 from .documents import blade_deltas_pct, jsonable, specimen_truth, weighed
-from .films import ORIENTATION, FilmParams, render_film, write_film
+from .films import ORIENTATION, render_film, write_film
 from .hammer import hammer_test
-from .patterns import PressureParams, flank_coordinates, redraw_joints, simulate_pressure
 from .rig import MIN_SNR, RigSetup, canonical_degenerate, damping_ratios, measure, peak_snr
 from .truth import (
-    TruthParams,
     assemble_truth,
-    make_truth_twin,
     solve_truth,
 )
+from .truth_response import write_response_truth
 
-__all__ = ["CampaignSpec", "CampaignInfo", "TEST_TYPES", "default_known_joints", "simulate_campaign"]
+__all__ = ["CampaignSpec", "CampaignInfo", "CampaignTwin", "TEST_TYPES", "assembly_solve_modes", "campaign_twin",
+           "default_known_joints", "simulate_campaign"]
 
-#: Modes each test must cover (issue 9 item 4): free blade, free disk, disk–one-blade; the full assembly
-#: covers the first three blade-mode families (3 × n_blades modes) and the disk modes among them.
-BLADE_MODES, DISK_MODES, D1B_MODES, FULL_FAMILIES = 8, 7, 10, 3
 #: Hammer references of the full-assembly test (blade tips spread round the disk). Mistuned modes localise
 #: on a few blades; with 3 references the shapes of the modes far from all three were the EMA's weakest.
 FULL_INPUTS = 6
-#: Spectral lines per test: the bundled campaign must stay small (≤ 40 MB; 8 bytes a complex value in
-#: single-precision UFF 58b).
-MAX_LINES = {"blade": 4000, "disk": 4000, "d1b": 2500, "assembly": 3500}
-#: The test types of a campaign.
-TEST_TYPES = ("blade", "disk", "d1b", "assembly")
-
 
 #: FilmMeta fields kept out of the manifest: the misregistration applied to the film is truth.
 TRUTH_ONLY_FILM_KEYS = ("shift", "rotation")
@@ -103,81 +110,6 @@ def solve_parallel(twin, jobs: list[tuple], workers: int) -> list[tuple]:
             return pool.map(_solve_one, jobs, chunksize=1)
     finally:
         _TWIN = None
-
-
-def default_known_joints(n_blades: int) -> tuple[int, ...]:
-    """Filmed joints when none are given: up to 5 (paper §6.1), spread evenly, never all of them."""
-    n_known = min(5, max(2, n_blades // 3), n_blades - 1)
-    known = np.unique(np.round(np.linspace(1, n_blades, n_known + 2)[1:-1]).astype(int))
-    if known.size < n_known:  # few blades: interior positions round together (3 blades: 2 and 2), use the ends
-        known = np.unique(np.round(np.linspace(1, n_blades, n_known)).astype(int))
-    return tuple(int(k) for k in known)
-
-
-@dataclass(frozen=True)
-class CampaignSpec:
-    """What to simulate. ``n_blades`` and ``grid`` default to the academic twin's (paper specimen).
-
-    ``realism`` picks the truth twin (:data:`lab.truth.REALISM`): ``"realistic"`` (a specimen and a test that
-    differ from the model as real ones do, docs/twin.md) or ``"ideal"`` (the model's own parts, for tests that
-    isolate one stage); ``truth`` overrides it with parameters made in Python. ``coherence`` names the test
-    types whose files carry the time-domain hammer test's coherence (ignored by the ideal twin's test).
-    ``reseat`` names joints whose contact is drawn again (:func:`lab.patterns.redraw_joints`, both flanks'
-    contact fraction near ``reseat_fraction`` where given): the seed's campaign after those blades were pulled
-    and re-seated, for comparing re-assemblies. Only their contact changes; the tests whose band it moves, and
-    those after them, draw their noise from the same stream but may draw it differently.
-    """
-
-    seed: int = 0
-    n_blades: int = AcademicParams.n_blades
-    grid: tuple[int, int] = AcademicParams.__dataclass_fields__["grid"].default
-    level: str = "default"
-    known_joints: tuple[int, ...] | None = None
-    name: str = "academic"
-    realism: str = "realistic"
-    coherence: tuple[str, ...] = TEST_TYPES
-    reseat: tuple[int, ...] = ()
-    reseat_fraction: float | None = None
-    truth: TruthParams | None = None
-    pressure: PressureParams | None = None
-    film: FilmParams = field(default_factory=FilmParams)
-    max_lines: dict = field(default_factory=lambda: dict(MAX_LINES))
-
-    def truth_params(self) -> TruthParams:
-        """The twin's parameters: ``truth`` where given, else those of the ``realism`` setting."""
-        return self.truth if self.truth is not None else TruthParams.of(self.realism)
-
-    def pressure_params(self) -> PressureParams:
-        """The contact-pressure generator: ``pressure`` where given, else that of the ``realism`` setting."""
-        return self.pressure if self.pressure is not None else PressureParams.of(self.realism)
-
-    def model_params(self) -> AcademicParams:
-        """The academic-twin parameters (raises ``ValueError`` naming a bad blade count, grid or level)."""
-        return AcademicParams.for_blades(self.n_blades, grid=tuple(self.grid), level=self.level)
-
-    def command(self, out: str | Path) -> str:
-        """The ``bladetwin lab simulate`` command that regenerates this campaign into ``out``.
-
-        Only the command-line settings are spelled out; a spec with non-default truth, pressure, film or line
-        settings (made in Python) cannot be regenerated from the command line, and says so.
-        """
-        cmd = (f"bladetwin lab simulate --out {out} --seed {self.seed} --blades {self.n_blades} "
-               f"--grid {self.grid[0]}x{self.grid[1]} --level {self.level} --known {','.join(map(str, self.known()))}"
-               f" --name {self.name} --realism {self.realism} --coherence {','.join(self.coherence) or 'none'}")
-        custom = self != CampaignSpec(self.seed, self.n_blades, tuple(self.grid), self.level, self.known_joints,
-                                      self.name, self.realism, tuple(self.coherence))
-        return cmd + (" (plus settings made in Python: re-seated joints, truth, pressure, film or lines)"
-                      if custom else "")
-
-    def known(self) -> tuple[int, ...]:
-        known = default_known_joints(self.n_blades) if self.known_joints is None else tuple(self.known_joints)
-        bad = [k for k in known if isinstance(k, bool) or not isinstance(k, (int, np.integer))
-               or not 1 <= k <= self.n_blades]
-        if bad or not known or len(set(known)) != len(known):
-            raise ValueError(f"known joints {list(known)}: expected distinct joint numbers in 1..{self.n_blades}")
-        if len(known) < 2:  # `bladetwin run` refuses a campaign with fewer: the PCA sampler needs two films a flank
-            raise ValueError(f"known joints {list(known)}: expected at least 2 filmed joints")
-        return tuple(sorted(int(k) for k in known))
 
 
 @dataclass(frozen=True)
@@ -295,22 +227,11 @@ class _CampaignWriter:
     def __init__(self, spec: CampaignSpec, params: AcademicParams, known: tuple[int, ...], root: Path, say,
                  out: Path):
         self.spec, self.params, self.known, self.root, self.say = spec, params, known, root, say
-        rng = np.random.default_rng(spec.seed)
-        # Independent streams per purpose, so that changing one part (say, the film grain) leaves the others.
-        rng_pressure, rng_truth, self.rng_damping, self.rng_noise, self.rng_film = rng.spawn(5)
-        scale = disk_scale_for(params.n_blades)
-        say(f"academic twin, level {params.level}, {params.n_blades} blades, grid {params.grid[0]}x{params.grid[1]}"
-            + (f", disk enlarged ×{scale:.3g} to hold the slots" if scale != 1.0 else ""))
-        bd = build_bladed_disk(params)
-        u, v = flank_coordinates(bd)
-        self.pressure = simulate_pressure(u, v, params.n_blades, rng_pressure, spec.pressure_params())
-        if spec.reseat:  # a sixth stream, spawned after the five: every other draw of the seed stays as it was
-            self.pressure = redraw_joints(self.pressure, spec.reseat, rng.spawn(1)[0], spec.reseat_fraction)
-        self.patterns = self.pressure.patterns()
-        node_pressure = np.stack([np.stack([self.pressure.pressure(s, f, u, v) for f in ("L", "R")])
-                                  for s in range(1, params.n_blades + 1)])
+        built = campaign_twin(spec, params, say)
+        self.rng_damping, self.rng_noise, self.rng_film = built.rng_damping, built.rng_noise, built.rng_film
+        self.pressure, self.patterns, self.twin = built.pressure, built.patterns, built.twin
         self.truth_params = spec.truth_params()
-        self.twin = make_truth_twin(bd, self.patterns, rng_truth, self.truth_params, node_pressure)
+        scale = built.disk_scale
         self.manifest: dict = {
             "campaign": {"name": spec.name, "kind": "virtual", "n_blades": params.n_blades, "grid": list(params.grid),
                          "known_joints": list(known), "generated_by": spec.command(out),
@@ -334,6 +255,7 @@ class _CampaignWriter:
             self.truth[key] = {"blades": [], "disk": None, "d1b": [], "assembly": None}
         self.n_files = 0
         self.assembly_modes: dict | None = None
+        self.assembly_solve: AssemblyModes | None = None  # the full assembly's truth solve, before the day factor
         self.presolved: dict = {}
         self.workers = max(1, min(2, os.cpu_count() or 1))
 
@@ -341,14 +263,16 @@ class _CampaignWriter:
                  families: int = 0) -> dict:
         """One test; ``families`` > 0: the band covers that many blade-mode families (n_blades modes each)."""
         max_lines = self.spec.max_lines[kind]
-        # Compute past the modes of interest: invisible (in-plane) modes interleave with them, and the modes
-        # above the band leave their residual effect at its upper edge.
+        # Compute past the modes of interest (solved_modes): invisible (in-plane) modes interleave with them, and the
+        # modes above the band leave their residual effect at its upper edge.
         key = (kind, tuple(slots) if slots is not None else None)
         if key in self.presolved:
             meas_labels, modes = self.presolved.pop(key)
         else:
-            meas_labels, modes = _solve_one_with(self.twin, slots, with_disk, n_wanted + n_wanted // 2 + 6,
+            meas_labels, modes = _solve_one_with(self.twin, slots, with_disk, solved_modes(n_wanted),
                                                  "assembly" if kind == "assembly" else "d1b")
+        if kind == "assembly":  # the mistuned truth of truth/response_modes.npz (finish): no second solve
+            self.assembly_solve = modes
         # The test day's temperature scales every frequency of that day (1 on the ideal twin).
         modes = replace(modes, frequencies_hz=modes.frequencies_hz * self.twin.day_factor(kind))
         if not with_disk:
@@ -449,7 +373,7 @@ class _CampaignWriter:
         # The disk–one-blade truth solves dominate the build and are independent: solve them two at a time first
         # (the measurements that follow draw their random numbers in the same order as ever).
         self.say(f"d1b truth solves ({n_blades}, {self.workers} at a time)")
-        jobs = [([s], True, D1B_MODES + D1B_MODES // 2 + 6) for s in range(1, n_blades + 1)]
+        jobs = [([s], True, solved_modes(D1B_MODES)) for s in range(1, n_blades + 1)]
         for (slots, _, _), result in zip(jobs, solve_parallel(self.twin, jobs, self.workers), strict=True):
             self.presolved[("d1b", tuple(slots))] = result
         self.per_slot("d1b", "d1b", "d1b", "joint", "joint", True, D1B_MODES)
@@ -482,7 +406,8 @@ class _CampaignWriter:
                 self.truth.setdefault("films", []).append({**entry, "file": f"truth/films/{name}"})
 
     def finish(self) -> int:
-        """Write the true patterns, ``truth.json`` and ``campaign.toml``; the number of campaign files written."""
+        """Write the true patterns, the full assembly's truth modes (``assembly_modes.npz``,
+        ``response_modes.npz``), ``truth.json`` and ``campaign.toml``; the number of campaign files written."""
         self.manifest["campaign"]["orientation"] = ORIENTATION
         L = np.stack([p.L for p in self.patterns])
         R = np.stack([p.R for p in self.patterns])
@@ -494,6 +419,10 @@ class _CampaignWriter:
         if self.assembly_modes is not None:
             with open(self.root / "truth" / "assembly_modes.npz", "wb") as fh:
                 np.savez_compressed(fh, **self.assembly_modes)
+        if self.assembly_solve is not None:
+            # The forced response's truth: the mistuned solve the test made, and the tuned truth's (one solve).
+            write_response_truth(self.twin, self.root / "truth", assembly_solve_modes(self.params.n_blades),
+                                 mistuned=self.assembly_solve, progress=self.say)
         (self.root / "truth" / "truth.json").write_text(json.dumps(self.truth, indent=1), encoding="utf-8")
         (self.root / "campaign.toml").write_text(tomli_w.dumps(self.manifest), encoding="utf-8")
         return self.n_files

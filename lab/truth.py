@@ -46,6 +46,7 @@ __all__ = [
     "make_truth_twin",
     "assemble_truth",
     "solve_truth",
+    "varied_blade",
 ]
 
 
@@ -268,7 +269,7 @@ def draw_blade_variations(n_blades: int, rng: np.random.Generator, params: Truth
     ]
 
 
-def _varied_blade(bd: BladedDisk, var: BladeVariation, params: TruthParams, name: str,
+def varied_blade(bd: BladedDisk, var: BladeVariation, params: TruthParams, name: str,
                   materials: dict | None = None) -> Component:
     """The nominal blade with its shank and airfoil reshaped by ``var``; root nodes stay where they are."""
     p = bd.params
@@ -344,7 +345,7 @@ def make_truth_twin(
         sector = params.disk_sector_spread * rng_disk.standard_normal(bd.n_slots)
     tbd = _truth_mesh(bd, params.mesh_refinement)
     disk = specimen.truth_disk(tbd, materials["disk_E"], materials["disk_rho"], sector)
-    blades = tuple(_varied_blade(tbd, v, params, f"blade{s + 1}", materials) for s, v in enumerate(variations))
+    blades = tuple(varied_blade(tbd, v, params, f"blade{s + 1}", materials) for s, v in enumerate(variations))
     scale = specimen.contact_scale(node_pressure, patterns, rng_contact, params.contact_spread,
                                    params.contact_pressure_exponent)
     seated = specimen.reseated_patterns(patterns, node_pressure, rng_seat, params.reseat_edge_share)

@@ -21,6 +21,7 @@ __all__ = [
     "BLADE_TABLE", "CALIBRATION", "DISK_CB", "BLADE_RUBIN", "DISK_CYCLIC", "DELTA_ALL",
     "FILMS", "KNOWN", "BASELINE", "REFERENCE", "SYNTHETIC", "SENSITIVITY", "DATASET", "FEATURES", "PREDICTIONS",
     "N_FULL_MODES", "VALIDATION", "D1B_ROWS", "RESPONSE", "RESPONSE_TUNED_PAPER", "RESPONSE_TUNED_UPDATED",
+    "RESPONSE_D1B_PAPER", "RESPONSE_D1B_UPDATED", "RESPONSE_TRUTH",
     "EMA", "TEST", "FULL", "ROM_UPDATE", "PATTERNS", "POSTERIOR", "REFINE", "FAMILIES",
     "PATTERNS_BASELINE", "POSTERIOR_PRIOR", "POSTERIOR_SURROGATE", "POSTERIOR_REPRESENTATION", "POSTERIOR_FACTORS",
     "ROM_UPDATE_STIFFNESS",
@@ -49,6 +50,9 @@ N_FULL_MODES, VALIDATION, D1B_ROWS = "n_full_modes", "validation", "d1b_rows"
 RESPONSE = "response"
 #: Each ROM's tuned disk for the amplification factors: nodes of their own, so they solve beside other work.
 RESPONSE_TUNED_PAPER, RESPONSE_TUNED_UPDATED = "response_tuned_paper", "response_tuned_updated"
+#: The ROMs' disk–one-blade modes for the AF's intervals, and the truth twin's modes (virtual campaigns).
+RESPONSE_D1B_PAPER, RESPONSE_D1B_UPDATED = "response_d1b_paper", "response_d1b_updated"
+RESPONSE_TRUTH = "response_truth"
 
 # ------------------------------------------------------------------------------------------------ families
 #: The families' prefixes: every name of one is ``<prefix><member>``.

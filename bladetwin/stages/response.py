@@ -9,12 +9,24 @@ damping the EMA measured in its band (the full-assembly test, else the disk–on
 model takes its family's ratio (:func:`rom.forced.family_damping`), the tuned disk's and the mistuned one's alike.
 
 A family is refused, with its reason, where the solves may miss a mode of its band: the AF needs every one.
+
+**Intervals.** Where the contact posterior ran, each of its samples (sample k of every unfilmed joint) changes
+the joints' disk–one-blade frequencies; the solved assembly's family modes are corrected for it in their own
+span (:mod:`rom.forced.perturbation`, scaled by the ROM's disk–one-blade mode at the blade point, node
+``response_d1b_*``), and the AF and worst blade of every sample give ``af_ci90`` and ``p_worst``. Where the
+campaign has a full-assembly test, every blade's frequency is also drawn off by the family's discrepancy
+against it (:func:`family_discrepancy`: the robust spread of the paired modes' errors, their mean removed).
+
+**Truth.** On a virtual campaign with ``truth/response_modes.npz`` (:mod:`lab.truth_response`) the truth twin's
+own mistuned and tuned modes go through the same rules: ``truth`` holds its AF.
 """
 
 from __future__ import annotations
 
+import hashlib
 import itertools
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
@@ -24,13 +36,24 @@ from rom.forced import amplification_factor, blade_modes, family_band, family_da
 from . import names
 from .full import FullSolve, solve_assembly
 from .graph import Node
+from .response_intervals import (
+    POINT,
+    contact_samples,
+    family_changes,
+    family_discrepancy,
+    interval_quantiles,
+    sample_afs,
+    with_discrepancy,
+)
 from .rom_update import updated_blade
 
-__all__ = ["N_FAMILIES", "POINT", "ROMResponse", "Response", "refuse_overlapping", "tuned_node", "response_node",
-           "add_response_node"]
+__all__ = ["N_FAMILIES", "POINT", "ROMResponse", "Response", "measured_damping", "band_damping",
+           "refuse_overlapping", "tuned_node", "d1b_node", "truth_node", "response_node", "add_response_node"]
 
-#: Families the run computes by default (the lowest), and the blade point loaded and read on every blade.
-N_FAMILIES, POINT = 3, 1
+#: Families the run computes by default (the lowest); the blade point loaded and read on every blade is POINT.
+N_FAMILIES = 3
+#: Modes of each ROM's disk–one-blade solve (:func:`d1b_node`), and the truth's file in a campaign's truth/.
+D1B_MODES, TRUTH_FILE = 10, "response_modes.npz"
 
 
 @dataclass(frozen=True, eq=False)
@@ -56,6 +79,20 @@ class ROMResponse:
         Where the worst blade's peak and the tuned disk's peak occur (Hz).
     refused : tuple of str, one per family
         Why a family was not computed ("" where it was).
+    af_ci90 : ndarray, shape (n_families, n_eo, 2)
+        5 % and 95 % quantiles of the AF over the posterior's samples (:func:`sample_afs`); NaN where not
+        computed.
+    p_worst : ndarray, shape (n_families, n_eo, n_blades)
+        Share of the samples in which each blade is the worst; NaN where not computed.
+    interval : tuple of str, one per family
+        Why a family has no interval ("" where it has one).
+    n_samples : int
+        Posterior samples behind the intervals (0: none).
+    af_ci90_contact : ndarray, shape (n_families, n_eo, 2)
+        The same interval with the contact's uncertainty alone (no blade-frequency discrepancy).
+    discrepancy : ndarray, shape (n_families,)
+        The family's relative blade-frequency discrepancy σ against the full-assembly test
+        (:func:`family_discrepancy`); NaN where there is no such test or too few paired modes.
     """
 
     rom: str
@@ -67,6 +104,12 @@ class ROMResponse:
     peak_hz: np.ndarray
     tuned_peak_hz: np.ndarray
     refused: tuple
+    af_ci90: np.ndarray | None = None
+    p_worst: np.ndarray | None = None
+    interval: tuple = ()
+    n_samples: int = 0
+    af_ci90_contact: np.ndarray | None = None
+    discrepancy: np.ndarray | None = None
 
 
 @dataclass(frozen=True, eq=False)
@@ -82,6 +125,11 @@ class Response:
         The tests whose EMA gave the families' damping.
     roms : tuple of ROMResponse
         The exported ROM first, then the paper's (once where they are the same).
+    truth : ROMResponse or None
+        The truth twin's own AF (``rom="truth"``), same force, bands rule and damping: a virtual campaign with
+        ``truth/response_modes.npz`` only.
+    interval_source : str
+        What the intervals sample, or why there are none.
     """
 
     n_blades: int
@@ -90,9 +138,11 @@ class Response:
     eos: tuple
     damping_source: str
     roms: tuple
+    truth: ROMResponse | None = None
+    interval_source: str = ""
 
 
-def _measured_damping(fits: dict) -> tuple[np.ndarray, np.ndarray, str]:
+def measured_damping(fits: dict) -> tuple[np.ndarray, np.ndarray, str]:
     """(frequencies Hz, damping ratios, source): the full-assembly EMA's modes, else the d1b tests' together."""
     use = ["assembly"] if "assembly" in fits else sorted(fits)
     f = np.concatenate([np.asarray(fits[k].model.frequencies_hz, float) for k in use] or [np.zeros(0)])
@@ -104,7 +154,7 @@ def _measured_damping(fits: dict) -> tuple[np.ndarray, np.ndarray, str]:
     return f[ok], z[ok], ("the full-assembly test's EMA" if use == ["assembly"] else "the disk–one-blade tests' EMA")
 
 
-def _band_damping(band, f: np.ndarray, z: np.ndarray) -> float:
+def band_damping(band, f: np.ndarray, z: np.ndarray) -> float:
     """The mean damping of the measured modes inside ``band`` (Hz), else of the one nearest in relative frequency."""
     inside = (f >= band[0]) & (f <= band[1])
     if inside.any():
@@ -159,13 +209,17 @@ def refuse_overlapping(bands: np.ndarray, families, refused: list) -> list:
     return out
 
 
-def _rom_response(rom: str, solve: str, mistuned, tuned, families, eos, measured) -> ROMResponse:
-    """One ROM's AFs: ``mistuned`` and ``tuned`` are :class:`rom.fe_assembly.AssemblyModes`."""
+def _rom_response(rom: str, solve: str, mistuned, tuned, families, eos, measured, samples=None,
+                  d1b=None, test_hz=None) -> ROMResponse:
+    """One ROM's AFs: ``mistuned`` and ``tuned`` are :class:`rom.fe_assembly.AssemblyModes`; with ``samples``
+    (:class:`ContactSamples`) and the ROM's disk–one-blade modes ``d1b``, their intervals too, widened by the
+    blade-frequency discrepancy against the full-assembly test's frequencies ``test_hz`` where given."""
     mis0, tun0 = blade_modes(mistuned, 0.01, POINT), blade_modes(tuned, 0.01, POINT)
-    shape = (len(families), len(eos))
-    af, worst = np.full(shape, np.nan), np.zeros(shape, int)
-    peak, tpeak = np.full(shape, np.nan), np.full(shape, np.nan)
-    bands, zeta, refused = np.full((len(families), 2), np.nan), np.full(len(families), np.nan), []
+    n_f, n_e, n_b = len(families), len(eos), mis0.n_blades
+    af, worst = np.full((n_f, n_e), np.nan), np.zeros((n_f, n_e), int)
+    peak, tpeak = np.full((n_f, n_e), np.nan), np.full((n_f, n_e), np.nan)
+    ci, ci_c, pw = np.full((n_f, n_e, 2), np.nan), np.full((n_f, n_e, 2), np.nan), np.full((n_f, n_e, n_b), np.nan)
+    bands, zeta, sigma, refused = np.full((n_f, 2), np.nan), np.full(n_f, np.nan), np.full(n_f, np.nan), []
     for i, fam in enumerate(families):
         band, why = _family(tun0, mis0, fam, solve)
         refused.append(why)
@@ -175,12 +229,14 @@ def _rom_response(rom: str, solve: str, mistuned, tuned, families, eos, measured
     if not measured[0].size:
         refused = [r or f"family {fam}: {measured[2]}" for fam, r in zip(families, refused, strict=True)]
     for i in np.flatnonzero([not r for r in refused]):
-        zeta[i] = _band_damping(bands[i], *measured[:2])
+        zeta[i] = band_damping(bands[i], *measured[:2])
+    interval = ["" if samples is not None else "no posterior samples"] * n_f
     ok = np.isfinite(zeta)
     if ok.any():
         mis = blade_modes(mistuned, family_damping(mis0.frequencies_hz, bands[ok], zeta[ok]), POINT)
         tun = blade_modes(tuned, family_damping(tun0.frequencies_hz, bands[ok], zeta[ok]), POINT)
         for i in np.flatnonzero(ok):
+            refs = {}
             for e, eo in enumerate(eos):
                 a = amplification_factor(mis, tun, eo, tuple(bands[i]), family=families[i])
                 tpeak[i, e] = a.tuned_peak_hz
@@ -188,8 +244,25 @@ def _rom_response(rom: str, solve: str, mistuned, tuned, families, eos, measured
                     continue  # no resonance of the family in the band: a ratio of two flanks is no AF
                 af[i, e], worst[i, e] = a.af, a.worst_blade
                 peak[i, e] = a.mistuned.peak_hz[a.worst_blade - 1]
+                refs[e] = a.tuned
+            if samples is None or d1b is None:
+                continue
+            dl, psi, interval[i] = family_changes(samples, bands[i], d1b)
+            if dl is None or not refs:
+                continue
+            s_af, s_worst = sample_afs(mis, tun, bands[i], eos, refs, dl, psi)
+            ci_c[i], pw[i] = interval_quantiles(s_af, s_worst, n_b)
+            ci[i] = ci_c[i]
+            if test_hz is not None:
+                sigma[i] = family_discrepancy(mis.frequencies_hz, test_hz, bands[i])
+            if np.isfinite(sigma[i]):
+                s_af, s_worst = sample_afs(mis, tun, bands[i], eos, refs,
+                                           with_discrepancy(dl, mis, bands[i], sigma[i], seed=families[i]), psi)
+                ci[i], pw[i] = interval_quantiles(s_af, s_worst, n_b)
     bands[[bool(r) for r in refused]] = np.nan
-    return ROMResponse(rom, solve, bands, zeta, af, worst, peak, tpeak, tuple(refused))
+    interval = [r or why for r, why in zip(refused, interval, strict=True)]
+    return ROMResponse(rom, solve, bands, zeta, af, worst, peak, tpeak, tuple(refused), ci, pw, tuple(interval),
+                       0 if samples is None else samples.n_samples, ci_c, sigma)
 
 
 def tuned_node(cyclic, bd, blade, baseline, delta_all: np.ndarray, n_modes: int, update=None):
@@ -202,10 +275,33 @@ def tuned_node(cyclic, bd, blade, baseline, delta_all: np.ndarray, n_modes: int,
     return solve_assembly(cyclic, bd, blade, [baseline] * delta_all.shape[0], mean, n_modes).modes
 
 
+def d1b_node(disk, blade, bd, baseline, delta_all: np.ndarray, update=None):
+    """The node: a ROM's disk–one-blade modes with the pattern ``baseline`` and the blades' mean δ (and ε of
+    ``update``, as :func:`tuned_node`): each family's blade mode ψ at the blade point, which scales the posterior
+    samples' per-blade changes (:mod:`rom.forced.perturbation`)."""
+    from rom.rom_assembly import solve_d1b
+
+    if update is not None:
+        blade, delta_all = updated_blade(blade, bd, update.stiffness), delta_all + update.corrections
+    return solve_d1b(disk, blade, baseline, n_modes=D1B_MODES, delta=np.mean(delta_all, axis=0))
+
+
+def truth_node(*, truth_dir: str, sha256: str) -> tuple:
+    """The node: the truth twin's (mistuned, tuned) full-assembly modes at the blade points
+    (:func:`lab.truth_response.load_response_truth`); ``sha256`` of the file keys it to its content."""
+    from lab.truth_response import load_response_truth
+
+    del sha256  # only the key's
+    truth = load_response_truth(truth_dir)
+    return truth.mistuned, truth.tuned
+
+
 def response_node(delta_all: np.ndarray, paper: FullSolve, tuned_paper, exported: FullSolve | None = None,
-                  tuned_exported=None, *, paper_solve: str,
-                  exported_solve: str | None = None, n_families: int = N_FAMILIES, **fits) -> Response:
-    """The node: AF per family 1..``n_families`` and EO 0..⌊N/2⌋ of the exported ROM and of the paper's.
+                  tuned_exported=None, d1b_paper=None, d1b_exported=None, truth: tuple | None = None, *,
+                  paper_solve: str, exported_solve: str | None = None, n_families: int = N_FAMILIES,
+                  **fits_and_posts) -> Response:
+    """The node: AF per family 1..``n_families`` and EO 0..⌊N/2⌋ of the exported ROM and of the paper's, their
+    intervals over the contact posterior's samples, and the truth's AF.
 
     Parameters
     ----------
@@ -217,38 +313,74 @@ def response_node(delta_all: np.ndarray, paper: FullSolve, tuned_paper, exported
         The tuned disks (:func:`tuned_node`) of the paper's ROM and of the updated one.
     exported : FullSolve, optional
         The updated ROM's solve (``full/updated``), where the run updated the ROM.
+    d1b_paper, d1b_exported : rom.fe_assembly.AssemblyModes, optional
+        The ROMs' disk–one-blade modes (:func:`d1b_node`), for the intervals.
+    truth : (AssemblyModes, AssemblyModes), optional
+        The truth twin's mistuned and tuned modes (:func:`truth_node`).
     paper_solve, exported_solve : str
         The solves' names (members of ``full/``).
-    **fits : TestFit
-        The EMA of the full-assembly test (``assembly``) or of the disk–one-blade tests: the families' damping.
+    **fits_and_posts
+        ``TestFit`` of the full-assembly test (``assembly``) or of the disk–one-blade tests: the families'
+        damping; and ``post_NN``: the experimental input's :class:`identify.posterior.JointPosterior` of
+        joint NN, the intervals' samples.
     """
+    posts = {int(k[5:]): v for k, v in fits_and_posts.items() if k.startswith("post_")}
+    fits = {k: v for k, v in fits_and_posts.items() if not k.startswith("post_")}
     try:
-        measured = _measured_damping(fits)
+        measured = measured_damping(fits)
     except ROMError as exc:  # no damping to give the families: each is refused with the reason, the run goes on
         measured = (np.zeros(0), np.zeros(0), str(exc))
     n = int(delta_all.shape[0])
     families, eos = tuple(range(1, n_families + 1)), tuple(range(n // 2 + 1))
+    samples = contact_samples(n, posts)
+    test = fits.get("assembly")
+    test_hz = None if test is None else np.asarray(test.model.frequencies_hz, float)
     roms = []
     if exported is not None:
         roms.append(_rom_response("updated", exported_solve, exported.modes, tuned_exported, families, eos,
-                                  measured))
-    roms.append(_rom_response("paper", paper_solve, paper.modes, tuned_paper, families, eos, measured))
-    return Response(n, POINT, families, eos, measured[2], tuple(roms))
+                                  measured, samples, d1b_exported, test_hz))
+    roms.append(_rom_response("paper", paper_solve, paper.modes, tuned_paper, families, eos, measured, samples,
+                              d1b_paper, test_hz))
+    true = None if truth is None else _rom_response("truth", "truth", truth[0], truth[1], families, eos, measured)
+    source = (f"{samples.n_samples} samples of the contact posterior at {len(posts)} unfilmed joints"
+              + (", each with every blade's frequency off by the family's discrepancy against the full-assembly test"
+                 if test_hz is not None else " (no full-assembly test: no blade-frequency discrepancy)")
+              if samples is not None else "no contact posterior in this run (--method knn): no intervals")
+    return Response(n, POINT, families, eos, measured[2], tuple(roms), true, source)
 
 
 def add_response_node(p, campaign, opts) -> None:
-    """Add the ``response`` node and its tuned disks to a campaign's pipeline ``p``."""
+    """Add the ``response`` node, its tuned disks, disk–one-blade modes and the truth's modes to a campaign's
+    pipeline ``p``."""
     paper = "posterior" if opts.posterior else "identified"
     solve = {"cyclic": names.DISK_CYCLIC, "bd": names.FE_MODEL, "blade": names.BLADE_RUBIN,
              "baseline": names.BASELINE, "delta_all": names.DELTA_ALL, "n_modes": names.N_FULL_MODES}
+    d1b = {"disk": names.DISK_CB, "bd": names.FE_MODEL, "blade": names.BLADE_RUBIN, "baseline": names.BASELINE,
+           "delta_all": names.DELTA_ALL}
     p.add(Node(names.RESPONSE_TUNED_PAPER, tuned_node, solve, {}, label="tuned disk (paper's ROM)"))
     inputs = {"delta_all": names.DELTA_ALL, "paper": names.full(paper), "tuned_paper": names.RESPONSE_TUNED_PAPER}
     params = {"paper_solve": paper, "n_families": N_FAMILIES}
+    if opts.posterior:
+        p.add(Node(names.RESPONSE_D1B_PAPER, d1b_node, d1b, {}, label="disk–one-blade modes (paper's ROM)"))
+        inputs["d1b_paper"] = names.RESPONSE_D1B_PAPER
+        unfilmed = [t.index for t in campaign.of_type("d1b") if t.index not in campaign.known_joints]
+        inputs.update({f"post_{j:02d}": names.posterior_joint("experimental", j) for j in unfilmed})
     if opts.updated:
         p.add(Node(names.RESPONSE_TUNED_UPDATED, tuned_node, {**solve, "update": names.rom_update("answer")}, {},
                    label="tuned disk (updated ROM)"))
         inputs.update(exported=names.full("updated"), tuned_exported=names.RESPONSE_TUNED_UPDATED)
         params["exported_solve"] = "updated"
+        if opts.posterior:
+            p.add(Node(names.RESPONSE_D1B_UPDATED, d1b_node, {**d1b, "update": names.rom_update("answer")}, {},
+                       label="disk–one-blade modes (updated ROM)"))
+            inputs["d1b_exported"] = names.RESPONSE_D1B_UPDATED
+    truth = campaign.truth_dir
+    if truth is not None and (Path(truth) / TRUTH_FILE).is_file():
+        digest = hashlib.sha256((Path(truth) / TRUTH_FILE).read_bytes()).hexdigest()
+        p.add(Node(names.RESPONSE_TRUTH, truth_node, {}, {"truth_dir": str(truth), "sha256": digest},
+                   where="parent", stored=False, content_key=True, label="the truth's modes"))
+        inputs["truth"] = names.RESPONSE_TRUTH
     kind = "assembly" if campaign.of_type("assembly") else "d1b"
     inputs.update({names.test_name(t): names.ema(names.test_name(t)) for t in campaign.of_type(kind)})
-    p.add(Node(names.RESPONSE, response_node, inputs, params, label="forced response and amplification factors"))
+    p.add(Node(names.RESPONSE, response_node, inputs, params, version=4,
+               label="forced response and amplification factors"))

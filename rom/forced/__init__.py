@@ -49,12 +49,14 @@ stiffness, no flutter), no friction or contact nonlinearity, no backward-travell
 orders, no static or centrifugal pre-stress beyond what the modes already hold.
 
 Modules: :mod:`.model` (the modes at the blades, the force, the receptance), :mod:`.sweep` (one band's
-peaks), :mod:`.families` (bands and per-family damping), :mod:`.amplification` (the AF).
+peaks), :mod:`.families` (bands and per-family damping), :mod:`.amplification` (the AF), :mod:`.perturbation`
+(a family's modes under per-blade changes, for the intervals over posterior samples).
 """
 
 from .amplification import AmplificationFactor, amplification_factor, amplification_factors, tuned_references
 from .families import PAIR_RTOL, family_band, family_damping
 from .model import FORMS, BladeModes, blade_modes, engine_order_force, modal_forces, receptance, whitehead_limit
+from .perturbation import family_columns, perturbed_family, sample_model
 from .sweep import GOLDEN_ITERATIONS, ForcedResponse, forced_response
 
 __all__ = [
@@ -69,6 +71,9 @@ __all__ = [
     "family_damping",
     "forced_response",
     "modal_forces",
+    "family_columns",
+    "perturbed_family",
+    "sample_model",
     "receptance",
     "tuned_references",
     "whitehead_limit",

@@ -92,7 +92,19 @@ def test_run_response_matches_a_direct_harmonic_solve(small_run, capsys):
     summary = json.loads((o / "summary.json").read_text(encoding="utf-8"))
     block = summary["response"]
     assert block["whitehead_limit"] == pytest.approx((1 + math.sqrt(4)) / 2)
-    assert set(block["not_computed"]) == {"af_ci90", "p_worst", "af_truth"}
+    # the k-NN run has no posterior samples (no intervals); the virtual campaign has the truth's AF
+    assert set(block["not_computed"]) == {"af_ci90", "p_worst"}
+    assert "--method knn" in block["not_computed"]["af_ci90"]
+    truth = block["truth"]["families"]
+    for rom, r in block["roms"].items():
+        for fam, f in r["families"].items():
+            for eo, v in f.get("eo", {}).items():
+                t = truth[fam].get("eo", {}).get(eo, {}).get("af")
+                assert v["af_truth"] == t, (rom, fam, eo)
+        scores = block["against_truth"][rom]
+        assert scores["n_cases"] == sum(v["af"] is not None and v["af_truth"] is not None
+                                        for f in r["families"].values() for v in f.get("eo", {}).values())
+        assert scores["n_cases"] > 0 and scores["in_ci90"] is None
     section = next(sec for sec in summary["sections"] if sec["id"] == "response")
     # every (family, EO) without an AF is named in the report's text with its reason
     for rom, r in block["roms"].items():
@@ -169,3 +181,39 @@ def test_a_run_whose_ema_gives_no_damping_refuses_every_family_and_goes_on(small
     (paper,) = resp.roms
     assert all("no EMA mode with a damping ratio" in why for why in paper.refused), paper.refused
     assert np.all(np.isnan(paper.af))
+
+
+def test_the_run_s_intervals_from_posterior_samples(small_run):
+    """The node's intervals from (synthetic) posterior samples of the unfilmed joints' d1b frequencies: each
+    family with an AF gets a 90 % interval and worst-blade probabilities summing to 1, with the discrepancy σ
+    against the full-assembly test; samples equal to the answer give back the point AF exactly (contact only)."""
+    from types import SimpleNamespace
+
+    from bladetwin.stages.response import d1b_node, response_node
+
+    x, _, s = small_run
+    opts = RunOptions(cache_dir=s, n_patterns=3, refine=0, rom="paper", method="knn")
+    want = [names.full("identified"), names.RESPONSE_TUNED_PAPER, names.DELTA_ALL, names.DISK_CB,
+            names.BLADE_RUBIN, names.FE_MODEL, names.BASELINE, names.ema("assembly")]
+    res, _ = run_nodes(read_campaign(x), want, opts)
+    d1b = d1b_node(res[names.DISK_CB], res[names.BLADE_RUBIN], res[names.FE_MODEL], res[names.BASELINE],
+                   res[names.DELTA_ALL])
+    f = np.asarray(d1b.frequencies_hz)
+    rng = np.random.default_rng(0)
+    args = (res[names.DELTA_ALL], res[names.full("identified")], res[names.RESPONSE_TUNED_PAPER])
+    kw = {"paper_solve": "identified", "d1b_paper": d1b, "assembly": res[names.ema("assembly")]}
+    moved = {f"post_{j:02d}": SimpleNamespace(answer_hz=f, samples_hz=f * (1 + 0.003 * rng.standard_normal((40, 1))))
+             for j in (2, 4)}
+    still = {k: SimpleNamespace(answer_hz=f, samples_hz=np.tile(f, (40, 1))) for k in moved}
+    (paper,) = response_node(*args, **kw, **moved).roms
+    (fixed,) = response_node(*args, **kw, **still).roms
+    assert paper.n_samples == 40
+    done = np.isfinite(paper.af)
+    assert done.any()
+    lo, hi = paper.af_ci90[..., 0][done], paper.af_ci90[..., 1][done]
+    assert np.all(lo <= hi)
+    np.testing.assert_allclose(np.nansum(paper.p_worst, axis=-1)[done], 1.0)
+    assert np.all(np.isfinite(paper.discrepancy[done.any(axis=1)]))
+    # samples without a change: the contact's interval is the solved disk's AF itself
+    np.testing.assert_allclose(fixed.af_ci90_contact[..., 0][done], paper.af[done], rtol=1e-9)
+    np.testing.assert_allclose(fixed.af_ci90_contact[..., 1][done], paper.af[done], rtol=1e-9)

@@ -130,9 +130,9 @@ def test_readme_tables_are_results_md_rows_without_the_source_column():
     results = (REPO / "docs" / "results.md").read_text().splitlines()
     checked = {_without_source(line) for line in results if line.startswith("|")}
     blocks = re.findall(r"<!-- results:(\w+) -->\n(.*?)<!-- /results:\1 -->", (REPO / "README.md").read_text(), re.S)
-    assert [name for name, _ in blocks] == ["table8", "contact", "rom", "performance"]
+    assert [name for name, _ in blocks] == ["table8", "contact", "rom", "response", "performance"]
     rows = [line for _, text in blocks for line in text.splitlines() if line.startswith("|")]
-    assert len(rows) >= 40  # Table 8, the contact check, the ROM table and the performance table
+    assert len(rows) >= 40  # Table 8, the contact check, the ROM, AF and performance tables
     assert not [line for line in rows if line not in checked]
     assert "source" not in "".join(rows) and not [line for line in rows if "summary.json:" in line]
 
