@@ -139,7 +139,8 @@ def response_summary(resp) -> dict:
     if not any(r.n_samples for r in resp.roms):
         missing["af_ci90"] = missing["p_worst"] = resp.interval_source or "no posterior samples"
     if truth is None:
-        missing["af_truth"] = "no truth/response_modes.npz: not a virtual campaign, or one made before it was written"
+        missing["af_truth"] = ("no truth/response_modes.npz: not a virtual campaign, or one made before it was "
+                               "written (`bladetwin lab response-truth CAMPAIGN` adds it)")
     block = {"n_blades": resp.n_blades, "point": resp.point, "whitehead_limit": whitehead,
              "families": list(resp.families), "eos": list(resp.eos), "damping_source": resp.damping_source,
              "interval_source": resp.interval_source, "exported": resp.roms[0].rom, "roms": roms,
@@ -299,7 +300,8 @@ def response_section(resp, out: Path) -> tuple[dict, dict]:
             f"by family, with each family's damping from {block['damping_source']}. Whitehead's limit "
             f"(1 + √N)/2 = {block['whitehead_limit']:.3f}.",
             _interval_text(block), *_truth_text(block), *notes]
-    text += [f"Not computed: {k} ({why})." for k, why in block["not_computed"].items() if k != "p_worst"]
+    if "af_truth" in block["not_computed"]:
+        text.append(f"No truth to check the AF against: {block['not_computed']['af_truth']}.")
     section = {"id": "response", "title": "Forced response and amplification factor", "text": text,
                "figures": [{"file": fig, "caption": "Amplification factor against engine order, per family, the "
                             "exported ROM and the paper's, each with its 90 % interval over the contact posterior "

@@ -345,7 +345,7 @@ def response_node(delta_all: np.ndarray, paper: FullSolve, tuned_paper, exported
     source = (f"{samples.n_samples} samples of the contact posterior at {len(posts)} unfilmed joints"
               + (", each with every blade's frequency off by the family's discrepancy against the full-assembly test"
                  if test_hz is not None else " (no full-assembly test: no blade-frequency discrepancy)")
-              if samples is not None else "no contact posterior in this run (--method knn): no intervals")
+              if samples is not None else "no contact posterior in this run (--method knn)")
     return Response(n, POINT, families, eos, measured[2], tuple(roms), true, source)
 
 
@@ -382,5 +382,5 @@ def add_response_node(p, campaign, opts) -> None:
         inputs["truth"] = names.RESPONSE_TRUTH
     kind = "assembly" if campaign.of_type("assembly") else "d1b"
     inputs.update({names.test_name(t): names.ema(names.test_name(t)) for t in campaign.of_type(kind)})
-    p.add(Node(names.RESPONSE, response_node, inputs, params, version=4,
+    p.add(Node(names.RESPONSE, response_node, inputs, params, version=5,
                label="forced response and amplification factors"))
