@@ -190,13 +190,17 @@ def worst_rows(block: dict) -> list[list]:
 
 def plot_response(block: dict, eos=None, families=None):
     """AF against EO, one panel per family: each ROM a line of its own colour with its 90 % interval as a bar,
-    the truth's AF as black crosses (virtual campaigns), Whitehead's limit (1 + √N)/2 dashed; a panel without an
-    AF says so (the report's text gives each reason)."""
+    the truth's AF as black crosses (virtual campaigns), Whitehead's limit (1 + √N)/2 dashed; an AF above 1.2 ×
+    that limit is drawn at the top as a triangle with its value; a panel without an AF says so (the report's text
+    gives each reason)."""
     fams = [int(f) for f in block["families"] if families is None or int(f) in families]
     fig, axes = plt.subplots(1, len(fams), figsize=(3.6 * len(fams) + 0.6, 3.6), squeeze=False, sharey=True)
     style = {rom: (f"C{k}", "os^"[k % 3]) for k, rom in enumerate(block["roms"])}
     n_roms = len(block["roms"])
     truth_drawn = False
+    # The axis ends a little above Whitehead's limit: an AF beyond it (flagged as suspect) would squeeze every
+    # other to a flat line; it is drawn at the top as a triangle with its value written beside it.
+    top = 1.2 * block["whitehead_limit"]
     for ax, fam in zip(axes[0], fams, strict=True):
         drawn = False
         for k, (rom, r) in enumerate(block["roms"].items()):
@@ -206,11 +210,16 @@ def plot_response(block: dict, eos=None, families=None):
                 continue
             shift = 0.12 * (k - (n_roms - 1) / 2)  # side by side, so both ROMs' intervals show
             x = np.array([eo for eo, _ in items]) + shift
-            ax.plot(x, [v["af"] for _, v in items], marker=style[rom][1], color=style[rom][0], ms=4)
+            y = np.array([v["af"] for _, v in items])
+            ax.plot(x, np.minimum(y, top), marker=style[rom][1], color=style[rom][0], ms=4)
+            for xx, yy in zip(x[y > top], y[y > top], strict=True):
+                ax.plot(xx, top, marker="^", color=style[rom][0], ms=7, clip_on=False)
+                ax.annotate(f"{yy:.2f}", (xx, top), xytext=(5, -10), textcoords="offset points", fontsize=7,
+                            color=style[rom][0])
             ci = [(xx, v["af_ci90"]) for xx, (_, v) in zip(x, items, strict=True) if "af_ci90" in v]
             if ci:
-                ax.vlines([c[0] for c in ci], [c[1][0] for c in ci], [c[1][1] for c in ci], color=style[rom][0],
-                          lw=2.5, alpha=0.45)
+                ax.vlines([c[0] for c in ci], [min(c[1][0], top) for c in ci], [min(c[1][1], top) for c in ci],
+                          color=style[rom][0], lw=2.5, alpha=0.45)
             drawn = True
         truth = sorted((int(eo), v["af"]) for eo, v in block.get("truth", {}).get("families", {})
                        .get(str(fam), {}).get("eo", {}).items() if (eos is None or int(eo) in eos) and v["af"])
@@ -227,6 +236,7 @@ def plot_response(block: dict, eos=None, families=None):
         ax.set_xlabel("engine order")
         ax.set_xticks([int(e) for e in block["eos"] if eos is None or int(e) in eos])
     axes[0][0].set_ylabel("amplification factor")
+    axes[0][0].set_ylim(0.9, top)
     handles = [Line2D([], [], color=c, marker=m, label=f"{rom} ROM (bar: 90 % interval)") for rom, (c, m)
                in style.items()]
     if truth_drawn:
