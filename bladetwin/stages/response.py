@@ -250,15 +250,19 @@ def _rom_response(rom: str, solve: str, mistuned, tuned, families, eos, measured
             dl, psi, interval[i] = family_changes(samples, bands[i], d1b)
             if dl is None or not refs:
                 continue
-            s_af, s_worst = sample_afs(mis, tun, bands[i], eos, refs, dl, psi)
-            ci_c[i], pw[i] = interval_quantiles(s_af, s_worst, n_b)
-            ci[i] = ci_c[i]
-            if test_hz is not None:
-                sigma[i] = family_discrepancy(mis.frequencies_hz, test_hz, bands[i])
-            if np.isfinite(sigma[i]):
-                s_af, s_worst = sample_afs(mis, tun, bands[i], eos, refs,
-                                           with_discrepancy(dl, mis, bands[i], sigma[i], seed=families[i]), psi)
-                ci[i], pw[i] = interval_quantiles(s_af, s_worst, n_b)
+            try:
+                s_af, s_worst = sample_afs(mis, tun, bands[i], eos, refs, dl, psi)
+                ci_c[i], pw[i] = interval_quantiles(s_af, s_worst, n_b)
+                ci[i] = ci_c[i]
+                if test_hz is not None:
+                    sigma[i] = family_discrepancy(mis.frequencies_hz, test_hz, bands[i])
+                if np.isfinite(sigma[i]):
+                    s_af, s_worst = sample_afs(mis, tun, bands[i], eos, refs,
+                                               with_discrepancy(dl, mis, bands[i], sigma[i], seed=families[i]), psi)
+                    ci[i], pw[i] = interval_quantiles(s_af, s_worst, n_b)
+            except ROMError as exc:  # a sample beyond the perturbation's reach: no interval, the AF stands
+                ci[i], ci_c[i], pw[i] = np.nan, np.nan, np.nan
+                interval[i] = f"family {families[i]}: {exc}"
     bands[[bool(r) for r in refused]] = np.nan
     interval = [r or why for r, why in zip(refused, interval, strict=True)]
     return ROMResponse(rom, solve, bands, zeta, af, worst, peak, tpeak, tuple(refused), ci, pw, tuple(interval),
