@@ -57,13 +57,13 @@ def _direct_case(res, band, zeta: float, eo: int, n_lines: int) -> tuple[float, 
     import scipy.sparse as sp
 
     from bladetwin.stages import names
-    from bladetwin.stages.rom_update import updated_blade
+    from bladetwin.stages.rom_update import updated_parts
     from rom.rom_assembly import assemble_full
 
-    update = res[names.rom_update("answer")]
-    blade = updated_blade(res[names.BLADE_RUBIN], res[names.FE_MODEL], update.stiffness)
+    blade, delta_all = updated_parts(res[names.BLADE_RUBIN], res[names.FE_MODEL], res[names.DELTA_ALL],
+                                     res[names.rom_update("answer")])
     patterns = dict(enumerate(res[names.posterior_patterns("experimental")], start=1))
-    asm = assemble_full(res[names.FE_MODEL], blade, patterns, res[names.DELTA_ALL] + update.corrections)
+    asm = assemble_full(res[names.FE_MODEL], blade, patterns, delta_all)
     n_b = len(patterns)
     rows = {int(lab[1]): k for k, lab in enumerate(asm.meas_labels) if lab[0] == "blade" and int(lab[2]) == 1}
     out = asm.out.toarray() if hasattr(asm.out, "toarray") else np.asarray(asm.out)

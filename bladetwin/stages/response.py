@@ -45,7 +45,7 @@ from .response_intervals import (
     sample_afs,
     with_discrepancy,
 )
-from .rom_update import updated_blade
+from .rom_update import updated_parts
 
 __all__ = ["N_FAMILIES", "POINT", "ROMResponse", "Response", "measured_damping", "band_damping",
            "refuse_overlapping", "tuned_node", "d1b_node", "truth_node", "response_node", "add_response_node"]
@@ -273,8 +273,7 @@ def tuned_node(cyclic, bd, blade, baseline, delta_all: np.ndarray, n_modes: int,
     """The node: a ROM's tuned disk, every joint with the pattern ``baseline`` and every blade the blades' mean
     (δ, and ε of ``update`` on its contact springs where the ROM was updated); its
     :class:`rom.fe_assembly.AssemblyModes`."""
-    if update is not None:
-        blade, delta_all = updated_blade(blade, bd, update.stiffness), delta_all + update.corrections
+    blade, delta_all = updated_parts(blade, bd, delta_all, update)
     mean = np.broadcast_to(np.mean(delta_all, axis=0), delta_all.shape).copy()
     return solve_assembly(cyclic, bd, blade, [baseline] * delta_all.shape[0], mean, n_modes).modes
 
@@ -285,8 +284,7 @@ def d1b_node(disk, blade, bd, baseline, delta_all: np.ndarray, update=None):
     samples' per-blade changes (:mod:`rom.forced.perturbation`)."""
     from rom.rom_assembly import solve_d1b
 
-    if update is not None:
-        blade, delta_all = updated_blade(blade, bd, update.stiffness), delta_all + update.corrections
+    blade, delta_all = updated_parts(blade, bd, delta_all, update)
     return solve_d1b(disk, blade, baseline, n_modes=D1B_MODES, delta=np.mean(delta_all, axis=0))
 
 

@@ -31,7 +31,7 @@ from .full import FullSolve, solve_assembly
 from .models import CyclicBuild
 from .posterior import ema_std_rel
 
-__all__ = ["ROM_KINDS", "updated_blade", "stiffness_node", "update_node", "solve_updated"]
+__all__ = ["ROM_KINDS", "updated_blade", "updated_parts", "stiffness_node", "update_node", "solve_updated"]
 
 #: ``--rom``: the paper's ROM only, or the updated one beside it (default).
 ROM_KINDS = ("paper", "updated")
@@ -42,6 +42,14 @@ def updated_blade(blade: RubinModel, bd, stiffness) -> RubinModel:
     if stiffness is None:
         return blade
     return with_contact_stiffness(blade, interface_compliance(blade_compliance_parts(bd.blade), stiffness))
+
+
+def updated_parts(blade: RubinModel, bd, delta_all: np.ndarray, update=None) -> tuple[RubinModel, np.ndarray]:
+    """(blade, δ of every blade) of the updated ROM: the blade on ``update``'s contact springs and δ + ε, shape
+    (n_blades, n_delta); the paper's ``blade`` and ``delta_all`` where ``update`` is None."""
+    if update is None:
+        return blade, delta_all
+    return updated_blade(blade, bd, update.stiffness), delta_all + update.corrections
 
 
 def _sigma(features: Features, fits: dict) -> dict[int, np.ndarray]:
@@ -106,5 +114,5 @@ def update_node(disk, blade, dataset: Dataset, features: Features, delta_all: np
 def solve_updated(cyclic: CyclicBuild, bd, blade: RubinModel, patterns: list[ContactPattern], delta_all: np.ndarray,
                   n_modes: int, update: UpdatedROM) -> FullSolve:
     """The node: the full bladed disk's modes with the updated ROM (blades on springs, δ + ε) and ``patterns``."""
-    return solve_assembly(cyclic, bd, updated_blade(blade, bd, update.stiffness), patterns,
-                          delta_all + update.corrections, n_modes)
+    blade, delta_all = updated_parts(blade, bd, delta_all, update)
+    return solve_assembly(cyclic, bd, blade, patterns, delta_all, n_modes)
