@@ -6,7 +6,8 @@ it times, for the exported (updated) ROM:
 
 * **intervals**: for families 1..3 (bands from the tuned disk, refused or not: the timing counts every family),
   the tuned sweeps of every EO, then each of the posterior's 200 samples' AF at every EO
-  (:func:`bladetwin.stages.response.sample_afs`: the family's modes corrected per sample, a sweep per EO);
+  (:func:`bladetwin.stages.response.sample_afs`: the family's modes corrected per sample, each blade's point
+  scaled by the disk–one-blade tests' amplitude scatter, a sweep per EO);
 * **reference, one case by a direct harmonic solve**: the same ROM assembled as the sparse hybrid (FE disk and
   Rubin blades, :func:`rom.rom_assembly.assemble_full`) and solved (K (1 + iη) − ω² M) x = F at
   ``--direct-lines`` frequencies of family 1's band under EO 1 (Pardiso, about 80 s a line on 172 458 DOFs);
@@ -38,12 +39,14 @@ def _inputs(campaign, workers: int) -> dict:
     unfilmed = [t.index for t in campaign.of_type("d1b") if t.index not in campaign.known_joints]
     wanted = [names.full("updated"), names.RESPONSE_TUNED_UPDATED, names.RESPONSE_D1B_UPDATED, names.DELTA_ALL,
               names.FE_MODEL, names.BLADE_RUBIN, names.rom_update("answer"), names.posterior_patterns("experimental"),
-              names.ema("assembly"), *[names.posterior_joint("experimental", j) for j in unfilmed]]
+              names.ema("assembly"), *[names.posterior_joint("experimental", j) for j in unfilmed],
+              *[names.ema(names.test_name(t)) for t in campaign.of_type("d1b")]]
     print(f"filling {default_cache_dir()} with the run's solves and posteriors (warm after `make run`) ...",
           flush=True)
     res, _ = run_nodes(campaign, wanted, RunOptions(cache_dir=default_cache_dir(), workers=workers))
     out = {k: res[k] for k in wanted}
     out["posts"] = {j: res[names.posterior_joint("experimental", j)] for j in unfilmed}
+    out["d1b_fits"] = {t.index: res[names.ema(names.test_name(t))] for t in campaign.of_type("d1b")}
     return out
 
 
@@ -90,7 +93,13 @@ def main(argv: list[str] | None = None) -> int:
     from bladetwin.campaign import read_campaign
     from bladetwin.stages import names
     from bladetwin.stages.response import POINT, band_damping, measured_damping
-    from bladetwin.stages.response_intervals import contact_samples, family_changes, sample_afs
+    from bladetwin.stages.response_intervals import (
+        amplitude_discrepancy,
+        amplitude_draws,
+        contact_samples,
+        family_changes,
+        sample_afs,
+    )
     from bladetwin.util import atomic_write_text
     from rom.forced import blade_modes, family_band, forced_response
 
@@ -117,7 +126,9 @@ def main(argv: list[str] | None = None) -> int:
             # no tracked d1b mode in this family's band: time it on family 1's changes all the same
             dl, psi, _ = family_changes(samples, bands[0], res[names.RESPONSE_D1B_UPDATED])
             print(f"family {fam}: {why}; timed with family 1's sample changes", flush=True)
-        sample_afs(mis, tun, band, eos, refs, dl, psi)
+        sigma_a, _ = amplitude_discrepancy(res["d1b_fits"], res[names.RESPONSE_D1B_UPDATED], band)
+        scale = amplitude_draws(*dl.shape, sigma_a, seed=fam) if np.isfinite(sigma_a) else None
+        sample_afs(mis, tun, band, eos, refs, dl, psi, scale)
         counted += samples.n_samples * len(eos)
         if fam == 1:
             step = forced_response(mis, 1, tuple(band)).step_hz  # the sweep's grid (its golden refinement aside)

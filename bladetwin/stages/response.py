@@ -16,6 +16,8 @@ span (:mod:`rom.forced.perturbation`, scaled by the ROM's disk–one-blade mode 
 ``response_d1b_*``), and the AF and worst blade of every sample give ``af_ci90`` and ``p_worst``. Where the
 campaign has a full-assembly test, every blade's frequency is also drawn off by the family's discrepancy
 against it (:func:`family_discrepancy`: the robust spread of the paired modes' errors, their mean removed).
+Where the disk–one-blade tests give mass-normalised shapes at the blade point, every blade's point is also
+scaled by the scatter of those amplitudes (:func:`amplitude_discrepancy`): the ROM's blades share one shape.
 
 **Truth.** On a virtual campaign with ``truth/response_modes.npz`` (:mod:`lab.truth_response`) the truth twin's
 own mistuned and tuned modes go through the same rules: ``truth`` holds its AF.
@@ -38,6 +40,8 @@ from .full import FullSolve, solve_assembly
 from .graph import Node
 from .response_intervals import (
     POINT,
+    amplitude_discrepancy,
+    amplitude_draws,
     contact_samples,
     family_changes,
     family_discrepancy,
@@ -93,6 +97,9 @@ class ROMResponse:
     discrepancy : ndarray, shape (n_families,)
         The family's relative blade-frequency discrepancy σ against the full-assembly test
         (:func:`family_discrepancy`); NaN where there is no such test or too few paired modes.
+    amplitude_discrepancy : ndarray, shape (n_families,)
+        The relative scatter σ_a of the blades' point amplitudes in their disk–one-blade tests
+        (:func:`amplitude_discrepancy`); NaN where fewer than 3 tests give it.
     """
 
     rom: str
@@ -110,6 +117,7 @@ class ROMResponse:
     n_samples: int = 0
     af_ci90_contact: np.ndarray | None = None
     discrepancy: np.ndarray | None = None
+    amplitude_discrepancy: np.ndarray | None = None
 
 
 @dataclass(frozen=True, eq=False)
@@ -210,16 +218,18 @@ def refuse_overlapping(bands: np.ndarray, families, refused: list) -> list:
 
 
 def _rom_response(rom: str, solve: str, mistuned, tuned, families, eos, measured, samples=None,
-                  d1b=None, test_hz=None) -> ROMResponse:
+                  d1b=None, test_hz=None, d1b_fits=None) -> ROMResponse:
     """One ROM's AFs: ``mistuned`` and ``tuned`` are :class:`rom.fe_assembly.AssemblyModes`; with ``samples``
     (:class:`ContactSamples`) and the ROM's disk–one-blade modes ``d1b``, their intervals too, widened by the
-    blade-frequency discrepancy against the full-assembly test's frequencies ``test_hz`` where given."""
+    blade-frequency discrepancy against the full-assembly test's frequencies ``test_hz`` and by the blade-point
+    amplitude scatter of the disk–one-blade tests ``d1b_fits`` (joint → fit) where given."""
     mis0, tun0 = blade_modes(mistuned, 0.01, POINT), blade_modes(tuned, 0.01, POINT)
     n_f, n_e, n_b = len(families), len(eos), mis0.n_blades
     af, worst = np.full((n_f, n_e), np.nan), np.zeros((n_f, n_e), int)
     peak, tpeak = np.full((n_f, n_e), np.nan), np.full((n_f, n_e), np.nan)
     ci, ci_c, pw = np.full((n_f, n_e, 2), np.nan), np.full((n_f, n_e, 2), np.nan), np.full((n_f, n_e, n_b), np.nan)
     bands, zeta, sigma, refused = np.full((n_f, 2), np.nan), np.full(n_f, np.nan), np.full(n_f, np.nan), []
+    sigma_a = np.full(n_f, np.nan)
     for i, fam in enumerate(families):
         band, why = _family(tun0, mis0, fam, solve)
         refused.append(why)
@@ -256,9 +266,13 @@ def _rom_response(rom: str, solve: str, mistuned, tuned, families, eos, measured
                 ci[i] = ci_c[i]
                 if test_hz is not None:
                     sigma[i] = family_discrepancy(mis.frequencies_hz, test_hz, bands[i])
-                if np.isfinite(sigma[i]):
-                    s_af, s_worst = sample_afs(mis, tun, bands[i], eos, refs,
-                                               with_discrepancy(dl, mis, bands[i], sigma[i], seed=families[i]), psi)
+                sigma_a[i] = amplitude_discrepancy(d1b_fits or {}, d1b, bands[i])[0]
+                if np.isfinite(sigma[i]) or np.isfinite(sigma_a[i]):
+                    dl2 = with_discrepancy(dl, mis, bands[i], sigma[i], seed=families[i]) \
+                        if np.isfinite(sigma[i]) else dl
+                    scale = amplitude_draws(*dl.shape, sigma_a[i], seed=families[i]) \
+                        if np.isfinite(sigma_a[i]) else None
+                    s_af, s_worst = sample_afs(mis, tun, bands[i], eos, refs, dl2, psi, scale)
                     ci[i], pw[i] = interval_quantiles(s_af, s_worst, n_b)
             except ROMError as exc:  # a sample beyond the perturbation's reach: no interval, the AF stands
                 ci[i], ci_c[i], pw[i] = np.nan, np.nan, np.nan
@@ -266,7 +280,7 @@ def _rom_response(rom: str, solve: str, mistuned, tuned, families, eos, measured
     bands[[bool(r) for r in refused]] = np.nan
     interval = [r or why for r, why in zip(refused, interval, strict=True)]
     return ROMResponse(rom, solve, bands, zeta, af, worst, peak, tpeak, tuple(refused), ci, pw, tuple(interval),
-                       0 if samples is None else samples.n_samples, ci_c, sigma)
+                       0 if samples is None else samples.n_samples, ci_c, sigma, sigma_a)
 
 
 def tuned_node(cyclic, bd, blade, baseline, delta_all: np.ndarray, n_modes: int, update=None):
@@ -327,7 +341,8 @@ def response_node(delta_all: np.ndarray, paper: FullSolve, tuned_paper, exported
         joint NN, the intervals' samples.
     """
     posts = {int(k[5:]): v for k, v in fits_and_posts.items() if k.startswith("post_")}
-    fits = {k: v for k, v in fits_and_posts.items() if not k.startswith("post_")}
+    d1b_fits = {int(k[7:]): v for k, v in fits_and_posts.items() if k.startswith("d1bfit_")}
+    fits = {k: v for k, v in fits_and_posts.items() if not k.startswith(("post_", "d1bfit_"))}
     try:
         measured = measured_damping(fits)
     except ROMError as exc:  # no damping to give the families: each is refused with the reason, the run goes on
@@ -340,13 +355,17 @@ def response_node(delta_all: np.ndarray, paper: FullSolve, tuned_paper, exported
     roms = []
     if exported is not None:
         roms.append(_rom_response("updated", exported_solve, exported.modes, tuned_exported, families, eos,
-                                  measured, samples, d1b_exported, test_hz))
+                                  measured, samples, d1b_exported, test_hz, d1b_fits))
     roms.append(_rom_response("paper", paper_solve, paper.modes, tuned_paper, families, eos, measured, samples,
-                              d1b_paper, test_hz))
+                              d1b_paper, test_hz, d1b_fits))
     true = None if truth is None else _rom_response("truth", "truth", truth[0], truth[1], families, eos, measured)
     source = (f"{samples.n_samples} samples of the contact posterior at {len(posts)} unfilmed joints"
               + (", each with every blade's frequency off by the family's discrepancy against the full-assembly test"
                  if test_hz is not None else " (no full-assembly test: no blade-frequency discrepancy)")
+              + (" and every blade's point amplitude off by the scatter of the disk–one-blade tests' amplitudes"
+                 if any(np.isfinite(r.amplitude_discrepancy).any() for r in roms)
+                 else " (no disk–one-blade test gives a mass-normalised blade-point amplitude: no amplitude "
+                      "discrepancy)")
               if samples is not None else "no contact posterior in this run (--method knn)")
     return Response(n, POINT, families, eos, measured[2], tuple(roms), true, source)
 
@@ -367,6 +386,7 @@ def add_response_node(p, campaign, opts) -> None:
         inputs["d1b_paper"] = names.RESPONSE_D1B_PAPER
         unfilmed = [t.index for t in campaign.of_type("d1b") if t.index not in campaign.known_joints]
         inputs.update({f"post_{j:02d}": names.posterior_joint("experimental", j) for j in unfilmed})
+        inputs.update({f"d1bfit_{t.index:02d}": names.ema(names.test_name(t)) for t in campaign.of_type("d1b")})
     if opts.updated:
         p.add(Node(names.RESPONSE_TUNED_UPDATED, tuned_node, {**solve, "update": names.rom_update("answer")}, {},
                    label="tuned disk (updated ROM)"))
@@ -384,5 +404,5 @@ def add_response_node(p, campaign, opts) -> None:
         inputs["truth"] = names.RESPONSE_TRUTH
     kind = "assembly" if campaign.of_type("assembly") else "d1b"
     inputs.update({names.test_name(t): names.ema(names.test_name(t)) for t in campaign.of_type(kind)})
-    p.add(Node(names.RESPONSE, response_node, inputs, params, version=5,
+    p.add(Node(names.RESPONSE, response_node, inputs, params, version=7,
                label="forced response and amplification factors"))

@@ -3,8 +3,9 @@
 Each posterior sample of the unfilmed joints changes their disk–one-blade frequencies
 (:class:`ContactSamples`); :func:`family_changes` turns that into each blade's eigenvalue change for one family,
 :func:`with_discrepancy` adds every blade's frequency discrepancy against the full-assembly test
-(:func:`family_discrepancy`), and :func:`sample_afs` gives every sample's AF and worst blade through
-:func:`rom.forced.perturbed_family`, without a new assembly solve.
+(:func:`family_discrepancy`), :func:`amplitude_draws` scales every blade's point by the scatter of the
+disk–one-blade tests' blade-point amplitudes (:func:`amplitude_discrepancy`), and :func:`sample_afs` gives every
+sample's AF and worst blade through :func:`rom.forced.perturbed_family`, without a new assembly solve.
 """
 
 from __future__ import annotations
@@ -13,10 +14,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from rom.forced import amplification_factor, perturbed_family, sample_model
+from ema.numbering import dof_label
+from rom.forced import BladeModes, amplification_factor, perturbed_family, sample_model
 
 __all__ = ["POINT", "ContactSamples", "contact_samples", "family_changes", "family_discrepancy", "with_discrepancy",
-           "sample_afs", "interval_quantiles"]
+           "amplitude_discrepancy", "amplitude_draws", "sample_afs", "interval_quantiles"]
 
 #: The blade point loaded and read on every blade (the response node's).
 POINT = 1
@@ -95,16 +97,21 @@ def family_changes(samples: ContactSamples, band, d1b) -> tuple[np.ndarray | Non
     return w2 * ((1.0 + samples.rel[:, :, k]) ** 2 - 1.0), psi, ""
 
 
-def sample_afs(mis, tuned, band, eos, refs: dict, delta_lambda: np.ndarray, psi: float) -> tuple:
+def sample_afs(mis, tuned, band, eos, refs: dict, delta_lambda: np.ndarray, psi: float,
+               scale: np.ndarray | None = None) -> tuple:
     """AF and worst blade of every sample and EO, shapes (n_samples, n_eo) (NaN / 0 where ``refs`` has no EO).
 
     ``mis``, ``tuned``: :class:`rom.forced.BladeModes` with the family's damping; ``refs``: EO index → the tuned
-    sweep. The samples' family modes come from :func:`rom.forced.perturbed_family`.
+    sweep. The samples' family modes come from :func:`rom.forced.perturbed_family`; ``scale``, shape
+    (n_samples, n_blades), multiplies each blade's row of every mode (:func:`amplitude_draws`): a blade whose
+    point moves (1 + η) times as much is loaded and read (1 + η) times as much.
     """
     f, phi = perturbed_family(mis, band, delta_lambda, psi)
     af, worst = np.full((len(f), len(eos)), np.nan), np.zeros((len(f), len(eos)), int)
     for s in range(len(f)):
         m = sample_model(mis, band, f[s], phi[s])
+        if scale is not None:
+            m = BladeModes(m.frequencies_hz, m.damping_ratio, m.shapes * scale[s][:, None])
         for e, ref in refs.items():
             a = amplification_factor(m, tuned, eos[e], tuple(band), tuned_response=ref)
             af[s, e], worst[s, e] = a.af, a.worst_blade
@@ -153,3 +160,69 @@ def with_discrepancy(dl: np.ndarray, mis, band, sigma: float, seed: int) -> np.n
     lam = float(np.mean(mis.omega[(mis.frequencies_hz >= band[0]) & (mis.frequencies_hz <= band[1])] ** 2))
     xi = sigma * np.random.default_rng(seed).standard_normal(dl.shape)
     return dl + lam * ((1.0 + xi) ** 2 - 1.0)
+
+
+def amplitude_discrepancy(fits: dict, d1b, band) -> tuple[float, int]:
+    """(σ_a, tests used): the scatter of the blades' point amplitudes in their disk–one-blade tests.
+
+    Each blade's mass-normalised shape value at its blade point :data:`POINT`, in its test's mode nearest the
+    ROM's disk–one-blade mode of the family (:func:`_point_value`), relative to the tests' median; σ_a is
+    1.4826 × the median absolute deviation of those ratios from 1 (the ROM's common scale, which the AF
+    cancels, removed).
+
+    Why: the ROM's blades share one shape and differ in stiffness only, so in every ROM each blade's point moves
+    alike in the family's blade mode. Real blades differ in geometry as well, and a blade whose point moves
+    (1 + η) times as much is loaded and read (1 + η) times as much: its peak under engine-order excitation
+    changes by about 2η, which no frequency shows. The tests' scatter holds that and their own scaling noise:
+    σ_a bounds the first from above.
+
+    Parameters
+    ----------
+    fits : dict
+        Joint (1-based) → the disk–one-blade test's fit (with ``.model``, an :class:`ema.ModalModel`). Tests
+        without mass-normalised shapes (no driving point), without the blade point or without a mode inside
+        ``band`` within 5 % of the ROM's frequency are skipped.
+    d1b : rom.fe_assembly.AssemblyModes
+        The ROM's disk–one-blade modes (:func:`bladetwin.stages.response.d1b_node`): the family's blade mode
+        and the blade point's measured direction.
+    band : (float, float)
+        The family's band (Hz).
+
+    Returns
+    -------
+    sigma_a : float
+        NaN with fewer than 3 usable tests, or where the ROM has no blade point or no mode in the band.
+    n_used : int
+    """
+    mode = _point_value(d1b, band)
+    dirs = [int(lab[3]) for lab in d1b.meas_labels if lab[0] == "blade" and int(lab[2]) == POINT]
+    if mode is None or len(dirs) != 1:
+        return float("nan"), 0
+    values = [v for joint, fit in sorted(fits.items()) if (v := _test_amplitude(fit.model, joint, dirs[0], mode[0],
+                                                                                band)) is not None]
+    if len(values) < 3:
+        return float("nan"), len(values)
+    rel = np.asarray(values) / np.median(values)
+    return float(1.4826 * np.median(np.abs(rel - 1.0))), len(values)
+
+
+def _test_amplitude(m, joint: int, direction: int, f_hz: float, band) -> float | None:
+    """|φ| at joint ``joint``'s blade point in the test's mode nearest ``f_hz`` in ``band`` (within 5 %), from
+    mass-normalised shapes; None where the test cannot give it."""
+    if m.scaling != "mass":
+        return None
+    node, d = dof_label(("blade", joint, POINT, direction))
+    rows = [k for k, (n, dd) in enumerate(m.dofs) if n == node and abs(dd) == d]
+    f = np.asarray(m.frequencies_hz, float)
+    inside = np.flatnonzero((f >= band[0]) & (f <= band[1]))
+    if len(rows) != 1 or not inside.size:
+        return None
+    k = inside[np.argmin(np.abs(np.log(f[inside] / f_hz)))]
+    v = abs(complex(m.shapes[rows[0], k]))
+    return v if abs(np.log(f[k] / f_hz)) <= 0.05 and np.isfinite(v) and v > 0 else None
+
+
+def amplitude_draws(n_samples: int, n_blades: int, sigma_a: float, seed: int) -> np.ndarray:
+    """Every sample's blade-point scales 1 + σ_a ξ, ξ standard normal, shape (n_samples, n_blades); the stream
+    (``seed``, 2) is independent of :func:`with_discrepancy`'s (``seed``)."""
+    return 1.0 + sigma_a * np.random.default_rng([seed, 2]).standard_normal((n_samples, n_blades))

@@ -195,7 +195,9 @@ def test_the_run_s_intervals_from_posterior_samples(small_run):
     opts = RunOptions(cache_dir=s, n_patterns=3, refine=0, rom="paper", method="knn")
     want = [names.full("identified"), names.RESPONSE_TUNED_PAPER, names.DELTA_ALL, names.DISK_CB,
             names.BLADE_RUBIN, names.FE_MODEL, names.BASELINE, names.ema("assembly")]
-    res, _ = run_nodes(read_campaign(x), want, opts)
+    campaign = read_campaign(x)
+    tests = {f"d1bfit_{t.index:02d}": names.ema(names.test_name(t)) for t in campaign.of_type("d1b")}
+    res, _ = run_nodes(campaign, want + list(tests.values()), opts)
     d1b = d1b_node(res[names.DISK_CB], res[names.BLADE_RUBIN], res[names.FE_MODEL], res[names.BASELINE],
                    res[names.DELTA_ALL])
     f = np.asarray(d1b.frequencies_hz)
@@ -207,6 +209,8 @@ def test_the_run_s_intervals_from_posterior_samples(small_run):
     still = {k: SimpleNamespace(answer_hz=f, samples_hz=np.tile(f, (40, 1))) for k in moved}
     (paper,) = response_node(*args, **kw, **moved).roms
     (fixed,) = response_node(*args, **kw, **still).roms
+    fits = {k: res[v] for k, v in tests.items()}
+    (shaped,) = response_node(*args, **kw, **moved, **fits).roms
     assert paper.n_samples == 40
     done = np.isfinite(paper.af)
     assert done.any()
@@ -214,6 +218,13 @@ def test_the_run_s_intervals_from_posterior_samples(small_run):
     assert np.all(lo <= hi)
     np.testing.assert_allclose(np.nansum(paper.p_worst, axis=-1)[done], 1.0)
     assert np.all(np.isfinite(paper.discrepancy[done.any(axis=1)]))
+    # the disk–one-blade tests' blade-point amplitudes scatter (the twin's blades differ in shape too): their
+    # σ_a widens the intervals, and the contact's interval alone stays as it was
+    fam = done.any(axis=1)
+    assert np.all(np.isfinite(shaped.amplitude_discrepancy[fam]) & (shaped.amplitude_discrepancy[fam] > 0))
+    assert np.all(np.isnan(paper.amplitude_discrepancy))
+    np.testing.assert_allclose(shaped.af_ci90_contact[done], paper.af_ci90_contact[done])
+    assert np.any(np.abs(shaped.af_ci90[done] - paper.af_ci90[done]) > 1e-6)
     # samples without a change: the contact's interval is the solved disk's AF itself
     np.testing.assert_allclose(fixed.af_ci90_contact[..., 0][done], paper.af[done], rtol=1e-9)
     np.testing.assert_allclose(fixed.af_ci90_contact[..., 1][done], paper.af[done], rtol=1e-9)
