@@ -68,6 +68,17 @@ def _area_width(posts: dict) -> float | None:
     return float(np.median(widths)) if widths else None
 
 
+def _diagnostics(posts: dict) -> dict:
+    """Each joint's chain figures (:class:`identify.chains.ChainDiagnostics`): R̂, ESS, steps, converged."""
+    out = {}
+    for j, p in sorted(posts.items()):
+        d = getattr(p, "diagnostics", None)
+        if d is not None:
+            out[str(j)] = {"rhat": float(d.rhat), "ess": float(d.ess), "n_steps": int(d.n_steps),
+                           "converged": d.converged}
+    return out
+
+
 def _cases(res, method: str) -> dict:
     c = res.cases
     if method == "knn":
@@ -94,6 +105,7 @@ def methods_summary(res) -> dict:
             widths = prior_intervals(res.posterior["prior"], flank_coordinates(res.bd))
             entry["width_ratio"] = {name: _width_ratio(res.posterior.get(name, {}), widths) for name in inputs}
             entry["area_ci90_median_width_pp"] = {name: _area_width(res.posterior.get(name, {})) for name in inputs}
+            entry["diagnostics"] = {name: _diagnostics(res.posterior.get(name, {})) for name in inputs}
             s = res.posterior["surrogate"]
             entry["surrogate"] = {"error_pct": s.error_pct.tolist(), "max_error_pct": s.max_error_pct.tolist(),
                                   "n_train": s.n_train, "n_test": s.n_test}

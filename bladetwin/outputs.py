@@ -263,6 +263,7 @@ def _posterior_section(res: RunResult, out: Path, methods: dict) -> list[dict]:
                     "means the test says nothing about it): " + ", ".join(f"{k} {v:.2f}" for k, v in ratio.items())
                     + f". The test narrows {min(ratio, key=ratio.get)} most and {max(ratio, key=ratio.get)} least; "
                       "what it leaves near 1 comes from the films' family (the prior).")
+    text += _chains_text((m.get("diagnostics") or {}).get("experimental") or {})
     return [{"id": "posterior", "title": "Contact posterior: every unfilmed joint with its confidence",
              "text": text,
              "figures": [{"file": fig, "caption": "Posterior probability of contact at each node (left pair), beside "
@@ -276,6 +277,24 @@ def _posterior_section(res: RunResult, out: Path, methods: dict) -> list[dict]:
                          "caption": "Each unfilmed joint's tracked disk–one-blade frequencies: the test's (bias "
                          "removed), the posterior's answer and the 90 % interval of the ROM's frequency over the "
                          "posterior (model error not included)."}]}]
+
+
+def _chains_text(diag: dict) -> list[str]:
+    """The chains' convergence (experimental input): R̂ and ESS over the joints, and every joint that failed."""
+    if not diag:
+        return []
+    from identify.chains import ESS_MIN, RHAT_MAX
+
+    rhat, ess = [d["rhat"] for d in diag.values()], [d["ess"] for d in diag.values()]
+    steps = sorted({d["n_steps"] for d in diag.values()})
+    bad = [j for j, d in diag.items() if not d["converged"]]
+    text = (f"Chains (summary.json: methods.posterior.diagnostics): R̂ over the walkers {min(rhat):.3f}–"
+            f"{max(rhat):.3f}, effective samples {min(ess):.0f}–{max(ess):.0f}, after "
+            f"{' or '.join(str(n) for n in steps)} steps (a joint runs on while R̂ > {RHAT_MAX} or ESS < "
+            f"{ESS_MIN:.0f}). ")
+    text += (f"Not converged: joint{'s' if len(bad) > 1 else ''} {', '.join(bad)}; their intervals are approximate."
+             if bad else "Every joint converged.")
+    return [text]
 
 
 def write_outputs(res: RunResult, out: Path, *, command: str = "bladetwin run", figures: bool = True,

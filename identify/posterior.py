@@ -11,11 +11,12 @@ relative noise of mode m: the model error measured on the filmed joints, the EMA
 surrogate's held-out error, added in quadrature (:func:`noise_model`). Patterns that are empty, full or on a line
 have zero prior mass.
 
-The posterior is sampled by the affine-invariant ensemble sampler of ``emcee`` (Goodman & Weare 2010), seeded,
-on the hard-thresholded grids: the sampler needs no gradient, so the likelihood's steps at each node's
-threshold do not hurt it. What the user gets (:class:`JointPosterior`): the MAP pattern (the best sample), the
-probability that each node is in contact, and 90 % intervals of each flank's area fraction and centroid and of
-the predicted frequencies.
+The posterior is sampled by the ensemble sampler of ``emcee`` (Goodman & Weare 2010) with differential-evolution
+moves (ter Braak 2006; ter Braak & Vrugt 2008), seeded, until its chains converge (:mod:`identify.chains`: R̂ and
+ESS, checked after every ``n_steps``), on the hard-thresholded grids: the sampler needs no gradient, so the
+likelihood's steps at each node's threshold do not hurt it. What the user gets (:class:`JointPosterior`): the MAP
+pattern (the best sample), the probability that each node is in contact, and 90 % intervals of each flank's area
+fraction and centroid and of the predicted frequencies.
 """
 
 from __future__ import annotations
@@ -27,12 +28,17 @@ import numpy as np
 
 from rom.contact import ContactPattern
 
+from .chains import ChainDiagnostics, diagnose
 from .contact_prior import ContactPrior
 from .contact_surrogate import ContactSurrogate
 from .errors import IdentifyError
 from .validation import contact_area_fraction, contact_centroid
 
-__all__ = ["JointPosterior", "joint_posterior", "noise_model", "prior_intervals", "width_ratio", "N_THIN"]
+__all__ = ["JointPosterior", "joint_posterior", "noise_model", "prior_intervals", "width_ratio", "N_THIN",
+           "MAX_EXTENSIONS"]
+
+#: How many more times its steps a posterior's walkers may run before it is reported as not converged.
+MAX_EXTENSIONS = 2
 
 #: Samples each joint keeps for what comes after it (the forced response's intervals: 200 samples give a 90 %
 #: interval's ends to about ±2 percentiles).
@@ -72,6 +78,11 @@ class JointPosterior:
     answer_hz : ndarray, shape (n_modes,)
         Predicted tracked frequencies of the answer (each node in contact where its probability exceeds ½), Hz:
         the samples' centre, the pattern the full solves take.
+    diagnostics : identify.chains.ChainDiagnostics
+        The chains' R̂ (over θ and each flank's area), ESS (over θ) and the steps run: where the first
+        ``n_steps`` leave R̂ above :data:`identify.chains.RHAT_MAX` or the ESS below
+        :data:`identify.chains.ESS_MIN`, the walkers run on, ``n_steps`` at a time, up to ``max_extensions``
+        times; ``diagnostics.converged`` says whether that sufficed.
     """
 
     pattern: ContactPattern
@@ -87,6 +98,7 @@ class JointPosterior:
     acceptance: float
     samples_hz: np.ndarray
     answer_hz: np.ndarray
+    diagnostics: ChainDiagnostics | None = None
 
 
 def noise_model(model_spread, surrogate_error_pct, ema_std_rel=None, representation_rel=None) -> np.ndarray:
@@ -133,7 +145,8 @@ def _check(prior, surrogate, target_hz, sigma_rel, factor, n_walkers, n_steps) -
 
 
 def joint_posterior(prior: ContactPrior, surrogate: ContactSurrogate, target_hz, sigma_rel, coordinates, *,
-                    factor=None, n_walkers: int = 32, n_steps: int = 1500, seed: int = 0) -> JointPosterior:
+                    factor=None, n_walkers: int = 32, n_steps: int = 1500, seed: int = 0,
+                    max_extensions: int = MAX_EXTENSIONS) -> JointPosterior:
     """Sample one joint's contact posterior (module docstring).
 
     Parameters
@@ -150,6 +163,9 @@ def joint_posterior(prior: ContactPrior, surrogate: ContactSurrogate, target_hz,
         The joint's δ factor f(pattern, δ) / f(pattern, 0) (default 1).
     n_walkers, n_steps : int
         Ensemble size (≥ 2 n_dim) and steps; the first third of the steps are discarded as burn-in.
+    max_extensions : int
+        How many more times ``n_steps`` the walkers may run while the chains have not converged
+        (:class:`JointPosterior` ``diagnostics``).
     seed : int
         Seeds the start positions and the sampler: the same inputs give the same answer.
     """
@@ -171,13 +187,34 @@ def joint_posterior(prior: ContactPrior, surrogate: ContactSurrogate, target_hz,
 
     rng = np.random.default_rng(seed)
     start = prior.draw(n_walkers, rng)
-    sampler = emcee.EnsembleSampler(n_walkers, prior.n_dim, log_prob, vectorize=True)
+    # differential-evolution moves, not emcee's default stretch: on the thresholded likelihood the stretch
+    # move's walkers mixed so slowly that R̂ over them was still 1.05–1.10 after 4500 steps on the bundled
+    # campaign (τ ≈ 60–130 steps); the DE mixture (emcee's documented choice for rugged, multimodal targets)
+    # brought it under 1.04 in 3000 (docs/design.md §8.51)
+    moves = [(emcee.moves.DEMove(), 0.8), (emcee.moves.DESnookerMove(), 0.2)]
+    sampler = emcee.EnsembleSampler(n_walkers, prior.n_dim, log_prob, moves=moves, vectorize=True)
     sampler.random_state = np.random.RandomState(seed).get_state()  # emcee's own stream, seeded
     sampler.run_mcmc(start, n_steps, progress=False)
-    burn = n_steps // 3
+    total = n_steps
+    diagnostics = _diagnostics(sampler, prior, coordinates, total)
+    for _ in range(max_extensions):
+        if diagnostics.converged:
+            break
+        sampler.run_mcmc(None, n_steps, progress=False)  # on from the walkers' last state
+        total += n_steps
+        diagnostics = _diagnostics(sampler, prior, coordinates, total)
+    burn = total // 3
     chain = sampler.get_chain(discard=burn, flat=True)
     logp = sampler.get_log_prob(discard=burn, flat=True)
-    return _summarise(prior, surrogate, chain, logp, coordinates, logr, float(np.mean(sampler.acceptance_fraction)))
+    return _summarise(prior, surrogate, chain, logp, coordinates, logr, float(np.mean(sampler.acceptance_fraction)),
+                      diagnostics)
+
+
+def _diagnostics(sampler, prior: ContactPrior, coordinates, total: int) -> ChainDiagnostics:
+    """R̂ over θ and each flank's area, ESS over θ, of the kept draws (the last two thirds of ``total`` steps)."""
+    chain = sampler.get_chain(discard=total // 3)
+    area = contact_area_fraction(prior.grids(chain.reshape(-1, chain.shape[2])))
+    return diagnose(chain, area.reshape(chain.shape[0], chain.shape[1], -1), total)
 
 
 def _area_centroid(grids: np.ndarray, u: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -193,7 +230,8 @@ def _ci90(area: np.ndarray, cen: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return np.percentile(area, q, axis=0).T, np.moveaxis(np.nanpercentile(cen, q, axis=0), 0, -1)
 
 
-def _summarise(prior, surrogate, chain, logp, coordinates, logr, acceptance) -> JointPosterior:
+def _summarise(prior, surrogate, chain, logp, coordinates, logr, acceptance,
+               diagnostics: ChainDiagnostics | None = None) -> JointPosterior:
     """Every figure of :class:`JointPosterior` from the kept samples."""
     u, v = (np.asarray(a, np.float64) for a in coordinates)
     best = int(np.argmax(logp))
@@ -209,7 +247,8 @@ def _summarise(prior, surrogate, chain, logp, coordinates, logr, acceptance) -> 
         probability=probability, area_pct_map=area[best], area_pct_ci90=area_ci90,
         centroid_map=cen[best], centroid_ci90=centroid_ci90,
         frequencies_hz=freq[best], frequencies_hz_ci90=np.percentile(freq, (5, 95), axis=0).T,
-        n_samples=len(chain), acceptance=acceptance, samples_hz=freq[thin], answer_hz=answer)
+        n_samples=len(chain), acceptance=acceptance, samples_hz=freq[thin], answer_hz=answer,
+        diagnostics=diagnostics)
 
 
 def _widths(area_ci90: np.ndarray, centroid_ci90: np.ndarray) -> np.ndarray:

@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
 
+from identify.chains import ESS_MIN, RHAT_MAX
 from identify.contact_prior import ContactPrior, contact_prior, held_out_projections
 from identify.contact_surrogate import ContactSurrogate, fit_surrogate
 from identify.dataset import Dataset
@@ -131,8 +133,14 @@ def posterior_joint(disk, blade, dataset: Dataset, features: Features, prior: Co
                        representation)
     if not np.any(np.isfinite(y)):
         return None
-    return joint_posterior(prior, surrogate, y, sigma, flank_coordinates(bd), factor=factors[joint - 1],
+    post = joint_posterior(prior, surrogate, y, sigma, flank_coordinates(bd), factor=factors[joint - 1],
                            seed=seed + joint)
+    d = post.diagnostics
+    if d is not None and not d.converged:
+        warnings.warn(f"joint {joint}, {input} input: the contact posterior's chains have not converged after "
+                      f"{d.n_steps} steps (R̂ {d.rhat:.3f}, ESS {d.ess:.0f}; converged means R̂ ≤ {RHAT_MAX} and "
+                      f"ESS ≥ {ESS_MIN:.0f}): its intervals and answer are approximate", UserWarning, stacklevel=2)
+    return post
 
 
 def answer_pattern(post: JointPosterior) -> ContactPattern:

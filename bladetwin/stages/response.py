@@ -38,17 +38,7 @@ from rom.forced import amplification_factor, blade_modes, family_band, family_da
 from . import names
 from .full import FullSolve, solve_assembly
 from .graph import Node
-from .response_intervals import (
-    POINT,
-    amplitude_discrepancy,
-    amplitude_draws,
-    contact_samples,
-    family_changes,
-    family_discrepancy,
-    interval_quantiles,
-    sample_afs,
-    with_discrepancy,
-)
+from .response_intervals import POINT, contact_samples, family_changes, family_interval
 from .rom_update import updated_parts
 
 __all__ = ["N_FAMILIES", "POINT", "ROMResponse", "Response", "measured_damping", "band_damping",
@@ -261,19 +251,8 @@ def _rom_response(rom: str, solve: str, mistuned, tuned, families, eos, measured
             if dl is None or not refs:
                 continue
             try:
-                s_af, s_worst = sample_afs(mis, tun, bands[i], eos, refs, dl, psi)
-                ci_c[i], pw[i] = interval_quantiles(s_af, s_worst, n_b)
-                ci[i] = ci_c[i]
-                if test_hz is not None:
-                    sigma[i] = family_discrepancy(mis.frequencies_hz, test_hz, bands[i])
-                sigma_a[i] = amplitude_discrepancy(d1b_fits or {}, d1b, bands[i])[0]
-                if np.isfinite(sigma[i]) or np.isfinite(sigma_a[i]):
-                    dl2 = with_discrepancy(dl, mis, bands[i], sigma[i], seed=families[i]) \
-                        if np.isfinite(sigma[i]) else dl
-                    scale = amplitude_draws(*dl.shape, sigma_a[i], seed=families[i]) \
-                        if np.isfinite(sigma_a[i]) else None
-                    s_af, s_worst = sample_afs(mis, tun, bands[i], eos, refs, dl2, psi, scale)
-                    ci[i], pw[i] = interval_quantiles(s_af, s_worst, n_b)
+                fi = family_interval(mis, tun, bands[i], eos, refs, dl, psi, families[i], test_hz, d1b, d1b_fits)
+                ci[i], ci_c[i], pw[i], sigma[i], sigma_a[i] = fi.ci90, fi.ci90_contact, fi.p_worst, fi.sigma, fi.sigma_a
             except ROMError as exc:  # a sample beyond the perturbation's reach: no interval, the AF stands
                 ci[i], ci_c[i], pw[i] = np.nan, np.nan, np.nan
                 interval[i] = f"family {families[i]}: {exc}"

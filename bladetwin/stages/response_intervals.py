@@ -6,6 +6,7 @@ Each posterior sample of the unfilmed joints changes their disk–one-blade freq
 (:func:`family_discrepancy`), :func:`amplitude_draws` scales every blade's point by the scatter of the
 disk–one-blade tests' blade-point amplitudes (:func:`amplitude_discrepancy`), and :func:`sample_afs` gives every
 sample's AF and worst blade through :func:`rom.forced.perturbed_family`, without a new assembly solve.
+:func:`family_interval` puts them together for one family.
 """
 
 from __future__ import annotations
@@ -18,7 +19,8 @@ from ema.numbering import dof_label
 from rom.forced import BladeModes, amplification_factor, perturbed_family, sample_model
 
 __all__ = ["POINT", "ContactSamples", "contact_samples", "family_changes", "family_discrepancy", "with_discrepancy",
-           "amplitude_discrepancy", "amplitude_draws", "sample_afs", "interval_quantiles"]
+           "amplitude_discrepancy", "amplitude_draws",
+           "FamilyInterval", "family_interval", "sample_afs", "interval_quantiles"]
 
 #: The blade point loaded and read on every blade (the response node's).
 POINT = 1
@@ -226,3 +228,51 @@ def amplitude_draws(n_samples: int, n_blades: int, sigma_a: float, seed: int) ->
     """Every sample's blade-point scales 1 + σ_a ξ, ξ standard normal, shape (n_samples, n_blades); the stream
     (``seed``, 2) is independent of :func:`with_discrepancy`'s (``seed``)."""
     return 1.0 + sigma_a * np.random.default_rng([seed, 2]).standard_normal((n_samples, n_blades))
+
+
+@dataclass(frozen=True, eq=False)
+class FamilyInterval:
+    """One family's intervals over the samples (:func:`family_interval`).
+
+    Attributes
+    ----------
+    ci90, ci90_contact : ndarray, shape (n_eo, 2)
+        5 %/95 % quantiles of the AF with every term, and with the contact's uncertainty alone.
+    p_worst : ndarray, shape (n_eo, n_blades)
+        Each blade's share of being the worst, with every term.
+    sigma, sigma_a : float
+        The frequency discrepancy (:func:`family_discrepancy`) and the amplitude discrepancy
+        (:func:`amplitude_discrepancy`); NaN where not given.
+    """
+
+    ci90: np.ndarray
+    ci90_contact: np.ndarray
+    p_worst: np.ndarray
+    sigma: float
+    sigma_a: float
+
+
+def family_interval(mis, tuned, band, eos, refs: dict, delta_lambda: np.ndarray, psi: float, family: int,
+                    test_hz=None, d1b=None, d1b_fits=None) -> FamilyInterval:
+    """A family's intervals: the contact's samples alone, then with each blade's frequency discrepancy against
+    the full-assembly test's frequencies ``test_hz`` and its point amplitude's scatter over the disk–one-blade
+    tests ``d1b_fits`` (joint → fit; with the ROM's d1b modes ``d1b``) where given. Arguments as
+    :func:`sample_afs`; ``family`` seeds the draws.
+
+    Raises
+    ------
+    rom.errors.ROMError
+        A sample beyond the perturbation's reach (:func:`rom.forced.perturbed_family`).
+    """
+    n_b = mis.n_blades
+    s_af, s_worst = sample_afs(mis, tuned, band, eos, refs, delta_lambda, psi)
+    ci_c, pw = interval_quantiles(s_af, s_worst, n_b)
+    sigma = family_discrepancy(mis.frequencies_hz, test_hz, band) if test_hz is not None else float("nan")
+    sigma_a = amplitude_discrepancy(d1b_fits, d1b, band)[0] if d1b_fits and d1b is not None else float("nan")
+    ci = ci_c
+    if np.isfinite(sigma) or np.isfinite(sigma_a):
+        dl = with_discrepancy(delta_lambda, mis, band, sigma, seed=family) if np.isfinite(sigma) else delta_lambda
+        scale = amplitude_draws(*dl.shape, sigma_a, seed=family) if np.isfinite(sigma_a) else None
+        s_af, s_worst = sample_afs(mis, tuned, band, eos, refs, dl, psi, scale)
+        ci, pw = interval_quantiles(s_af, s_worst, n_b)
+    return FamilyInterval(ci, ci_c, pw, sigma, sigma_a)

@@ -155,3 +155,20 @@ def test_held_out_projections_restore_a_family_member_and_miss_a_film_outside_it
     assert not np.array_equal(held_out_projections(films, films, (2, 2))[2, 0], films[2].gray > films[2].level)
     with pytest.raises(IdentifyError, match="≥ 3 films"):
         held_out_projections(films[:2], films[:2], (1, 1))
+
+
+def test_chains_run_on_until_they_converge_and_say_when_they_do_not():
+    """Too few steps for the walkers to mix: with extensions the sampler runs on until R̂ and ESS pass (its
+    diagnostics say how far it went); without, it stops and says it has not converged."""
+    from identify.chains import ESS_MIN, RHAT_MAX
+
+    rng = np.random.default_rng(5)
+    prior = _prior()
+    model = _linear_model(prior, rng, n_modes=6)
+    y = model.predict_hz(prior.grids(prior.draw(1, rng)))[0]
+    sigma = np.full(6, 2e-4)
+    short = joint_posterior(prior, model, y, sigma, _uv(), n_walkers=24, n_steps=30, seed=2, max_extensions=0)
+    assert short.diagnostics.n_steps == 30 and not short.diagnostics.converged
+    longer = joint_posterior(prior, model, y, sigma, _uv(), n_walkers=24, n_steps=400, seed=2, max_extensions=4)
+    d = longer.diagnostics
+    assert d.converged and d.rhat <= RHAT_MAX and d.ess >= ESS_MIN and d.n_steps in (400, 800, 1200, 1600, 2000)
