@@ -85,7 +85,8 @@ class ContactPrior:
         g = np.asarray(grids, bool).reshape(-1, 2, *self.grid_shape)
         n_on = g.sum(axis=(2, 3))
         ok = np.all((n_on > 0) & (n_on < np.prod(self.grid_shape)), axis=1)
-        return ok & non_collinear_batch(g[:, 0]) & non_collinear_batch(g[:, 1])
+        # both flanks in one call: the posterior asks this of every proposal, and each call has a fixed cost
+        return ok & non_collinear_batch(g.reshape(-1, *self.grid_shape)).reshape(-1, 2).all(axis=1)
 
     def draw(self, n: int, rng: np.random.Generator, widen: float = 1.0) -> np.ndarray:
         """``n`` parameter vectors drawn from the prior (widened by ``widen``) that give valid grids, (n, n_dim)."""
