@@ -17,8 +17,8 @@ _DEFAULTS = RunOptions()
 
 
 def add_stage_options(p) -> None:
-    """Add ``--cache-dir --n --scale --seed --step --features --no-bias --refine --method --rom --components --workers
-    --dask-workers``."""
+    """Add ``--cache-dir --n --scale --seed --step --features --no-bias --refine --method --rom --components
+    --posterior-steps --workers --dask-workers``."""
     d = _DEFAULTS
     p.add_argument("--allow-outside", action="store_true",
                    help="let the manifest name files outside the campaign folder (refused by default)")
@@ -53,6 +53,9 @@ def add_stage_options(p) -> None:
     p.add_argument("--components", type=int, default=None, metavar="K",
                    help="PCA components per flank of the contact posterior's prior (default: enough for 95 %% of "
                         "the films' variance; at most one fewer than the filmed joints)")
+    p.add_argument("--posterior-steps", type=int, default=d.posterior_steps, metavar="N",
+                   help="steps of each joint's posterior sampler per round; rounds run on until its chains "
+                        "converge (R̂ ≤ 1.05, ESS ≥ 400), at most 3 (default: %(default)s)")
     p.add_argument("--dask-workers", type=int, default=None, metavar="N",
                    help="build the dataset on a local Dask cluster of N worker processes (default: in a worker)")
 
@@ -69,12 +72,14 @@ def stage_options(args, *, scheduler: str | None = None) -> RunOptions:
             ("--dask-workers", args.dask_workers, args.dask_workers is None or args.dask_workers >= 1,
              "a positive integer"),
             ("--components", args.components, args.components is None or args.components >= 1,
-             "a positive integer")):
+             "a positive integer"),
+            ("--posterior-steps", args.posterior_steps, args.posterior_steps >= 10, "an integer ≥ 10")):
         if not ok:
             raise ValueError(f"{name} {v}: expected {expected}")
     return RunOptions(cache_dir=Path(args.cache_dir) if args.cache_dir else None, n_patterns=args.n,
                       scale=args.scale, seed=args.seed, step_pct=args.step, n_features=args.features,
                       bias=not args.no_bias, workers=args.workers, dask_workers=args.dask_workers,
                       scheduler=scheduler, refine=args.refine,
-                      method=args.method, n_components=args.components, rom=args.rom,
+                      method=args.method, n_components=args.components, posterior_steps=args.posterior_steps,
+                      rom=args.rom,
                       calibrate=args.calibrate)

@@ -66,6 +66,9 @@ class RunOptions:
         posterior shares its features, and it takes a second) but is not refined or reported.
     n_components : int or None
         PCA components per flank of the posterior's prior; default: enough for 95 % of the films' variance.
+    posterior_steps : int
+        Steps of each joint's sampler per round; rounds run on until its chains converge, at most
+        1 + :data:`identify.posterior.MAX_EXTENSIONS` of them (:func:`identify.posterior.joint_posterior`).
     calibrate : bool
         Calibrate E and ρ of the disk and the blades on the tests before any reduction (paper §5, Table 4;
         :mod:`bladetwin.stages.calibration`); ``True`` by default; ``False`` (``bladetwin run --no-calibrate``)
@@ -90,6 +93,7 @@ class RunOptions:
     refine: int = 40
     method: str = "both"
     n_components: int | None = None
+    posterior_steps: int = 1500
     rom: str = "updated"
     calibrate: bool = True
 
@@ -286,7 +290,8 @@ def _posterior_nodes(p: Pipeline, campaign, opts: RunOptions) -> None:
                  "surrogate": names.POSTERIOR_SURROGATE, "delta_all": names.DELTA_ALL,
                  "factors": names.POSTERIOR_FACTORS, "bd": names.FE_MODEL, "reference": names.REFERENCE,
                  "fit": fits[j], "representation": names.POSTERIOR_REPRESENTATION},
-                {"input": name, "joint": int(j), "seed": opts.seed}, version=6,  # 6: diagnostics, DE moves
+                {"input": name, "joint": int(j), "seed": opts.seed, "n_steps": opts.posterior_steps},
+                version=6,  # 6: diagnostics, DE moves
                 label=f"joint {j} posterior ({name} input)")).name
         p.add(Node(names.posterior_patterns(name), posterior.posterior_patterns,
                    {"known": names.KNOWN, "baseline": names.BASELINE, **posts}, {"n_blades": campaign.n_blades},

@@ -122,7 +122,8 @@ def _target(features: Features, tracker, reference, delta, joint: int, input: st
 
 def posterior_joint(disk, blade, dataset: Dataset, features: Features, prior: ContactPrior,
                     surrogate: ContactSurrogate, delta_all: np.ndarray, factors: np.ndarray, bd, reference, fit=None,
-                    representation=None, *, input: str, joint: int, seed: int) -> JointPosterior | None:
+                    representation=None, *, input: str, joint: int, seed: int,
+                    n_steps: int = 1500) -> JointPosterior | None:
     """The node: one joint's posterior for one input (:func:`identify.posterior.joint_posterior`).
 
     ``factors`` is :func:`delta_factors`'s output, ``representation`` :func:`representation_error`'s. Returns
@@ -134,7 +135,7 @@ def posterior_joint(disk, blade, dataset: Dataset, features: Features, prior: Co
     if not np.any(np.isfinite(y)):
         return None
     post = joint_posterior(prior, surrogate, y, sigma, flank_coordinates(bd), factor=factors[joint - 1],
-                           seed=seed + joint)
+                           seed=seed + joint, n_steps=n_steps)
     d = post.diagnostics
     if d is not None and not d.converged:
         warnings.warn(f"joint {joint}, {input} input: the contact posterior's chains have not converged after "

@@ -322,6 +322,7 @@ def test_12_a_negative_seed_names_its_flag(camp, tmp_path, capsys, argv):
 @pytest.mark.parametrize("argv, needle", [(["--components", "0"], "--components 0"),
                                           (["--components", "99"], "--components 99"),
                                           (["--scale", "-1"], "--scale -1"),
+                                          (["--posterior-steps", "5"], "--posterior-steps 5"),
                                           (["--method", "bayes"], "--method")])
 def test_12_bad_posterior_settings_are_refused_before_any_computation(camp, tmp_path, capsys, argv, needle):
     capsys.readouterr()

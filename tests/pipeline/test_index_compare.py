@@ -41,7 +41,8 @@ SMALL = {"level": "coarse", "n_blades": 4, "grid": (3, 7), "known_joints": (1, 3
 RESEATED, RESEAT_FRACTION = 2, 0.25
 #: `bladetwin run` settings: the posterior gives the intervals the rule compares (the k-NN gives none); no figures
 #: (the page's maps are checked on hand-made folders below), the paper's ROM only, the smallest dataset.
-RUN = ["run", "--no-figures", "--refine", "0", "--n", "3", "--rom", "paper", "--method", "posterior"]
+RUN = ["run", "--no-figures", "--refine", "0", "--n", "3", "--rom", "paper", "--method", "posterior",
+       "--posterior-steps", "500"]
 
 
 class _Tables(HTMLParser):

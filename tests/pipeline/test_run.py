@@ -281,7 +281,8 @@ def test_posterior_runs_without_truth_and_answers_every_unfilmed_joint(campaign,
     lab = tmp_path / "lab"
     shutil.copytree(camp, lab, ignore=shutil.ignore_patterns("truth"))
     out = tmp_path / "out"
-    assert main([*RUN, str(lab), *KNN_ONLY, *PAPER_ROM, "--method", "both", "--out", str(out), "--cache-dir",
+    assert main([*RUN, str(lab), *KNN_ONLY, *PAPER_ROM, "--method", "both", "--posterior-steps", "500",
+                 "--out", str(out), "--cache-dir",
                  str(root / "cache"), "--quiet"]) == 0
     s = json.loads((out / "summary.json").read_text())
     known = set(s["known_joints"])
@@ -299,7 +300,7 @@ def test_posterior_runs_without_truth_and_answers_every_unfilmed_joint(campaign,
     unfilmed = {j["joint"] for j in s["joints"] if j["joint"] not in known}
     assert {int(j) for j in diag} == unfilmed
     for j, d in diag.items():
-        assert d["rhat"] >= 1.0 and d["ess"] > 0 and d["n_steps"] % 1500 == 0
+        assert d["rhat"] >= 1.0 and d["ess"] > 0 and d["n_steps"] in (500, 1000, 1500)
         assert d["converged"] == (d["rhat"] <= 1.05 and d["ess"] >= 400)
         assert d["converged"] != any(w.startswith(f"joint {j}, experimental input: the contact posterior's chains")
                                      for w in s["warnings"])
