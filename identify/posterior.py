@@ -192,20 +192,20 @@ def joint_posterior(prior: ContactPrior, surrogate: ContactSurrogate, target_hz,
     start = prior.draw(n_walkers, rng)
     # differential-evolution moves, not emcee's default stretch: on the thresholded likelihood the stretch
     # move's walkers mixed so slowly that R̂ over them was still 1.05–1.10 after 4500 steps on the bundled
-    # campaign (τ ≈ 60–130 steps); the DE mixture (emcee's documented choice for rugged, multimodal targets)
-    # brought it under 1.04 in 3000 (docs/design.md §8.51)
+    # campaign (τ ≈ 60–130 steps); with the DE mixture (emcee's documented choice for rugged, multimodal
+    # targets) every bundled joint reached R̂ ≤ 1.05 within 4500 steps, most within 3000 (docs/design.md §8.51)
     moves = [(emcee.moves.DEMove(), 0.8), (emcee.moves.DESnookerMove(), 0.2)]
     sampler = emcee.EnsembleSampler(n_walkers, prior.n_dim, log_prob, moves=moves, vectorize=True)
     sampler.random_state = np.random.RandomState(seed).get_state()  # emcee's own stream, seeded
     sampler.run_mcmc(start, n_steps, progress=False)
     total = n_steps
-    diagnostics = _diagnostics(sampler, prior, coordinates, total)
+    diagnostics = _diagnostics(sampler, prior, total)
     for _ in range(max_extensions):
         if diagnostics.converged:
             break
         sampler.run_mcmc(None, n_steps, progress=False)  # on from the walkers' last state
         total += n_steps
-        diagnostics = _diagnostics(sampler, prior, coordinates, total)
+        diagnostics = _diagnostics(sampler, prior, total)
     burn = total // 3
     chain = sampler.get_chain(discard=burn, flat=True)
     logp = sampler.get_log_prob(discard=burn, flat=True)
@@ -213,7 +213,7 @@ def joint_posterior(prior: ContactPrior, surrogate: ContactSurrogate, target_hz,
                       diagnostics)
 
 
-def _diagnostics(sampler, prior: ContactPrior, coordinates, total: int) -> ChainDiagnostics:
+def _diagnostics(sampler, prior: ContactPrior, total: int) -> ChainDiagnostics:
     """R̂ over θ and each flank's area, ESS over θ, of the kept draws (the last two thirds of ``total`` steps).
 
     The areas' R̂ is taken on every k-th draw (k = 5: about 200 draws a walker at 1500 steps); the grids of every

@@ -1,10 +1,9 @@
 """The graph of ``bladetwin run`` for one campaign: every stage as a named node (design §2.1).
 
 :func:`campaign_pipeline` lists the nodes a campaign needs (one EMA node per test, one refinement per unfilmed
-joint and input, one full solve per set of patterns) and :func:`campaign_sources` the values they start from.
-``bladetwin run`` asks for every output; ``bladetwin identify …`` asks for one node and gets it, and what it
-needs, from the same store. Every node is added, and every input wired, under its name in
-:mod:`~bladetwin.stages.names`, the catalog its readers ask by.
+joint and input, one full solve per set of patterns), :func:`campaign_sources` the values they start from, each
+under its name in :mod:`~bladetwin.stages.names`. ``bladetwin run`` asks for every output; ``bladetwin identify
+…`` asks for one node and gets it, and what it needs, from the same store.
 """
 
 from __future__ import annotations
@@ -61,14 +60,12 @@ class RunOptions:
         After the k-NN, refine every unfilmed joint's pattern by a compass search of at most this many d1b
         solves (:func:`identify.refine.refine_pattern`, beyond the paper); 0: the k-NN's pair, as the paper.
     method : {"knn", "posterior", "both"}
-        Identify unfilmed joints by the k-NN (and its refinement), by the contact posterior
-        (:mod:`identify.posterior`, beyond the paper), or both. With ``"posterior"`` the k-NN still runs (the
-        posterior shares its features, and it takes a second) but is not refined or reported.
+        Identify unfilmed joints by the k-NN (and its refinement), the contact posterior (beyond the paper) or
+        both. With ``"posterior"`` the k-NN still runs (it gives the features) but is not refined or reported.
     n_components : int or None
         PCA components per flank of the posterior's prior; default: enough for 95 % of the films' variance.
     posterior_steps : int
-        Steps of each joint's sampler per round; rounds run on until its chains converge, at most
-        1 + :data:`identify.posterior.MAX_EXTENSIONS` of them (:func:`identify.posterior.joint_posterior`).
+        Steps of each joint's sampler per round, run until its chains converge (:mod:`identify.posterior`).
     calibrate : bool
         Calibrate E and ρ of the disk and the blades on the tests before any reduction (paper §5, Table 4;
         :mod:`bladetwin.stages.calibration`); ``True`` by default; ``False`` (``bladetwin run --no-calibrate``)
@@ -290,8 +287,7 @@ def _posterior_nodes(p: Pipeline, campaign, opts: RunOptions) -> None:
                  "surrogate": names.POSTERIOR_SURROGATE, "delta_all": names.DELTA_ALL,
                  "factors": names.POSTERIOR_FACTORS, "bd": names.FE_MODEL, "reference": names.REFERENCE,
                  "fit": fits[j], "representation": names.POSTERIOR_REPRESENTATION},
-                {"input": name, "joint": int(j), "seed": opts.seed, "n_steps": opts.posterior_steps},
-                version=6,  # 6: diagnostics, DE moves
+                {"input": name, "joint": int(j), "seed": opts.seed, "n_steps": opts.posterior_steps}, version=6,
                 label=f"joint {j} posterior ({name} input)")).name
         p.add(Node(names.posterior_patterns(name), posterior.posterior_patterns,
                    {"known": names.KNOWN, "baseline": names.BASELINE, **posts}, {"n_blades": campaign.n_blades},
