@@ -9,6 +9,9 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from identify.chains import ESS_MIN, RHAT_MAX
+from identify.posterior import MAX_EXTENSIONS
+
 from .stages import RunOptions
 
 __all__ = ["add_stage_options", "stage_options"]
@@ -55,7 +58,8 @@ def add_stage_options(p) -> None:
                         "the films' variance; at most one fewer than the filmed joints)")
     p.add_argument("--posterior-steps", type=int, default=d.posterior_steps, metavar="N",
                    help="steps of each joint's posterior sampler per round; rounds run on until its chains "
-                        "converge (R̂ ≤ 1.05, ESS ≥ 400), at most 3 (default: %(default)s)")
+                        f"converge (R̂ ≤ {RHAT_MAX}, ESS ≥ {ESS_MIN:.0f}), at most {MAX_EXTENSIONS + 1} "
+                        "(default: %(default)s)")
     p.add_argument("--dask-workers", type=int, default=None, metavar="N",
                    help="build the dataset on a local Dask cluster of N worker processes (default: in a worker)")
 

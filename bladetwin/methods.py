@@ -74,8 +74,8 @@ def _diagnostics(posts: dict) -> dict:
     for j, p in sorted(posts.items()):
         d = getattr(p, "diagnostics", None)
         if d is not None:
-            out[str(j)] = {"rhat": float(d.rhat), "ess": float(d.ess), "n_steps": int(d.n_steps),
-                           "converged": d.converged}
+            out[str(j)] = {"rhat": float(d.rhat), "ess": float(d.ess) if np.isfinite(d.ess) else None,
+                           "n_steps": int(d.n_steps), "converged": d.converged}
     return out
 
 

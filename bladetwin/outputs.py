@@ -285,11 +285,11 @@ def _chains_text(diag: dict) -> list[str]:
         return []
     from identify.chains import ESS_MIN, RHAT_MAX
 
-    rhat, ess = [d["rhat"] for d in diag.values()], [d["ess"] for d in diag.values()]
+    rhat, ess = [d["rhat"] for d in diag.values()], [d["ess"] for d in diag.values() if d["ess"] is not None]
     steps = sorted({d["n_steps"] for d in diag.values()})
     bad = [j for j, d in diag.items() if not d["converged"]]
     text = (f"Chains (summary.json: methods.posterior.diagnostics): R̂ over the walkers {min(rhat):.3f}–"
-            f"{max(rhat):.3f}, effective samples {min(ess):.0f}–{max(ess):.0f}, after "
+            f"{max(rhat):.3f}, effective samples {min(ess, default=0):.0f}–{max(ess, default=0):.0f}, after "
             f"{' or '.join(str(n) for n in steps)} steps (a joint runs on while R̂ > {RHAT_MAX} or ESS < "
             f"{ESS_MIN:.0f}). ")
     text += (f"Not converged: joint{'s' if len(bad) > 1 else ''} {', '.join(bad)}; their intervals are approximate."
