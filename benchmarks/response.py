@@ -6,8 +6,9 @@ it times, for the exported (updated) ROM:
 
 * **intervals**: for families 1..3 (bands from the tuned disk, refused or not: the timing counts every family),
   the tuned sweeps of every EO, then each of the posterior's 200 samples' AF at every EO
-  (:func:`bladetwin.stages.response.sample_afs`: the family's modes corrected per sample, each blade's point
-  scaled by the disk–one-blade tests' amplitude scatter, a sweep per EO);
+  (:func:`bladetwin.stages.response_intervals.family_interval`, as the run: the family's modes corrected per
+  sample and a sweep per EO, once with the contact alone and once with the frequency and amplitude
+  discrepancies, both passes counted in the time of a case);
 * **reference, one case by a direct harmonic solve**: the same ROM assembled as the sparse hybrid (FE disk and
   Rubin blades, :func:`rom.rom_assembly.assemble_full`) and solved (K (1 + iη) − ω² M) x = F at
   ``--direct-lines`` frequencies of family 1's band under EO 1 (Pardiso, about 80 s a line on 172 458 DOFs);
@@ -93,13 +94,7 @@ def main(argv: list[str] | None = None) -> int:
     from bladetwin.campaign import read_campaign
     from bladetwin.stages import names
     from bladetwin.stages.response import POINT, band_damping, measured_damping
-    from bladetwin.stages.response_intervals import (
-        amplitude_discrepancy,
-        amplitude_draws,
-        contact_samples,
-        family_changes,
-        sample_afs,
-    )
+    from bladetwin.stages.response_intervals import contact_samples, family_changes, family_interval
     from bladetwin.util import atomic_write_text
     from rom.forced import blade_modes, family_band, forced_response
 
@@ -117,6 +112,7 @@ def main(argv: list[str] | None = None) -> int:
     mis = blade_modes(solved, np.full(solved.frequencies_hz.size, zeta.mean()), POINT)
     tun = blade_modes(res[names.RESPONSE_TUNED_UPDATED], np.full(tun0.n_modes, zeta.mean()), POINT)
     samples = contact_samples(n, res["posts"])
+    test_hz = np.asarray(res[names.ema("assembly")].model.frequencies_hz, float)
     t0 = time.perf_counter()
     counted, lines = 0, None
     for fam, band in zip((1, 2, 3), bands, strict=True):
@@ -126,9 +122,8 @@ def main(argv: list[str] | None = None) -> int:
             # no tracked d1b mode in this family's band: time it on family 1's changes all the same
             dl, psi, _ = family_changes(samples, bands[0], res[names.RESPONSE_D1B_UPDATED])
             print(f"family {fam}: {why}; timed with family 1's sample changes", flush=True)
-        sigma_a, _ = amplitude_discrepancy(res["d1b_fits"], res[names.RESPONSE_D1B_UPDATED], band)
-        scale = amplitude_draws(*dl.shape, sigma_a, seed=fam) if np.isfinite(sigma_a) else None
-        sample_afs(mis, tun, band, eos, refs, dl, psi, scale)
+        family_interval(mis, tun, band, eos, refs, dl, psi, fam, test_hz, res[names.RESPONSE_D1B_UPDATED],
+                        res["d1b_fits"])
         counted += samples.n_samples * len(eos)
         if fam == 1:
             step = forced_response(mis, 1, tuple(band)).step_hz  # the sweep's grid (its golden refinement aside)

@@ -128,14 +128,15 @@ def diagnose(chains: np.ndarray, derived: np.ndarray | None = None, n_steps: int
     ----------
     chains : ndarray, shape (n_draws, n_chains, n_dim)
         Kept draws (burn-in removed).
-    derived : ndarray, shape (n_draws, n_chains, n_q), optional
-        Quantities computed from each draw whose convergence matters too (each flank's contact area).
+    derived : ndarray, shape (n_draws', n_chains, n_q), optional
+        Quantities computed from the draws whose convergence matters too (each flank's contact area), from all
+        of them or from every k-th (n_draws' ≤ n_draws).
     n_steps : int, optional
         Steps each walker ran, burn-in included (default: n_draws).
     """
     x = np.asarray(chains, np.float64)
-    q = x if derived is None else np.concatenate([x, np.asarray(derived, np.float64)], axis=2)
-    rhat = max(split_rhat(q[..., k]) for k in range(q.shape[2]))
+    q = [x] if derived is None else [x, np.asarray(derived, np.float64)]
+    rhat = max(split_rhat(a[..., k]) for a in q for k in range(a.shape[2]))
     ess = effective_sample_size(x)
     return ChainDiagnostics(float(rhat), float(np.nanmin(ess)) if np.isfinite(ess).any() else float("nan"),
                             int(x.shape[0] if n_steps is None else n_steps))

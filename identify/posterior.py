@@ -22,13 +22,13 @@ fraction and centroid and of the predicted frequencies.
 from __future__ import annotations
 
 import numbers
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import numpy as np
 
 from rom.contact import ContactPattern
 
-from .chains import ChainDiagnostics, diagnose, split_rhat
+from .chains import ChainDiagnostics, diagnose
 from .contact_prior import ContactPrior
 from .contact_surrogate import ContactSurrogate
 from .errors import IdentifyError
@@ -223,8 +223,7 @@ def _diagnostics(sampler, prior: ContactPrior, total: int) -> ChainDiagnostics:
     chain = sampler.get_chain(discard=total // 3)
     thin = chain[::AREA_THIN]
     area = contact_area_fraction(prior.grids(thin.reshape(-1, thin.shape[2]))).reshape(*thin.shape[:2], -1)
-    d = diagnose(chain, n_steps=total)
-    return replace(d, rhat=max(d.rhat, *(split_rhat(area[..., k]) for k in range(area.shape[2]))))
+    return diagnose(chain, area, total)
 
 
 def _area_centroid(grids: np.ndarray, u: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -64,10 +64,15 @@ def contact_samples(n_blades: int, posts: dict) -> ContactSamples | None:
     return ContactSamples(rel, answer)
 
 
+def _point_rows(d1b) -> list[int]:
+    """Rows of blade point :data:`POINT` in a ROM's disk–one-blade labels (one, where the solve measures it)."""
+    return [k for k, lab in enumerate(d1b.meas_labels) if lab[0] == "blade" and int(lab[2]) == POINT]
+
+
 def _point_value(d1b, band) -> tuple[float, float] | None:
     """(frequency Hz, value at the blade point) of the disk–one-blade mode of the family in ``band``: the one
     moving the blade point most (the blade-dominated one); None where no d1b mode lies in the band."""
-    rows = [k for k, lab in enumerate(d1b.meas_labels) if lab[0] == "blade" and int(lab[2]) == POINT]
+    rows = _point_rows(d1b)
     if len(rows) != 1:
         return None
     f = np.asarray(d1b.frequencies_hz)
@@ -197,11 +202,11 @@ def amplitude_discrepancy(fits: dict, d1b, band) -> tuple[float, int]:
     n_used : int
     """
     mode = _point_value(d1b, band)
-    dirs = [int(lab[3]) for lab in d1b.meas_labels if lab[0] == "blade" and int(lab[2]) == POINT]
-    if mode is None or len(dirs) != 1:
+    if mode is None:  # also None where the ROM's labels hold the blade point not exactly once
         return float("nan"), 0
-    values = [v for joint, fit in sorted(fits.items()) if (v := _test_amplitude(fit.model, joint, dirs[0], mode[0],
-                                                                                band)) is not None]
+    direction = int(d1b.meas_labels[_point_rows(d1b)[0]][3])
+    values = [v for joint, fit in sorted(fits.items())
+              if (v := _test_amplitude(fit.model, joint, direction, mode[0], band)) is not None]
     if len(values) < 3:
         return float("nan"), len(values)
     rel = np.asarray(values) / np.median(values)
