@@ -13,6 +13,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import scipy.linalg as sla
+from threadpoolctl import threadpool_limits
 
 from ema import FRFSet, fit
 from lab.judge import AssemblyTruth, assembly_scores, shape_mac_bound
@@ -79,7 +80,10 @@ def case():
     frf = _frfs(M, K, C)
     truth = AssemblyTruth(frequencies_hz=f, all_frequencies_hz=f, shapes=shapes[:N_BLADES],
                           blade_energy=np.ones(f.size), outputs=tuple(frf.outputs), damping_ratio=zeta)
-    return frf, truth, fit(frf, families=True)
+    # one BLAS thread, whatever the worker count: in the crowded stretches the fit's local minima follow the
+    # rounding (with two threads in this process: 23 modes, ± 2σ 0.74, MAC 0.84; with one: 25, 0.88, 0.95)
+    with threadpool_limits(1):
+        return frf, truth, fit(frf, families=True)
 
 
 def test_the_synthetic_family_is_as_dense_as_a_bladed_disk(case):
@@ -106,16 +110,18 @@ def test_families_find_every_mode(scores):
     assert s["n_more_than_1pct_off"] == 0, s
 
 
-@pytest.mark.xfail(strict=True, reason="issue 49, not met: mean shape MAC 0.80 against a noise ceiling of 1.00; "
-                   "six modes in the family's most crowded stretches have MAC 0.001–0.70")
+@pytest.mark.xfail(strict=False, reason="issue 49, not met: mean shape MAC 0.95 against a noise ceiling of 1.00 "
+                   "(one BLAS thread; 0.84 with two); a mode in the family's most crowded stretch has MAC 0.74. Not "
+                   "strict: the figure moves with the rounding across the 0.95 this asks for")
 def test_family_shapes_reach_the_noise_ceiling(scores):
     """Issue 49's shapes: the mean MAC within 0.05 of what the noise allows (lab.judge.shape_mac_bound)."""
     s, ceiling = scores
     assert s["mean_shape_mac"] >= ceiling - 0.05, (s, ceiling)
 
 
-@pytest.mark.xfail(strict=True, reason="issue 49, not met: 17 of the 23 found modes within ± 2σ (0.74); the other 6 "
-                   "lie 2.5–15 σ from their nearest true mode, in the family's crowded stretches")
+@pytest.mark.xfail(strict=False, reason="issue 49, not met on every machine: 22 of the 25 found modes within ± 2σ "
+                   "(0.88) with one BLAS thread, 17 of 23 (0.74) with two; the fit's local minima in the crowded "
+                   "stretches follow the rounding")
 def test_family_standard_deviations_cover_the_truth(scores):
     """Issue 49's calibration: ≥ 85 % of the found modes within ± 2σ of their truth."""
     s, _ = scores

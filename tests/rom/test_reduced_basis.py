@@ -57,7 +57,7 @@ def _patterns():
 def test_spring_model_matches_the_compliance_formulation(model, parts):
     """Two independent paths to the blade on springs: stiffness springs between kept node pairs (affine) and
     the springs' compliance in Eq. 13 (rom.contact_stiffness). The compliance path is the spring model with the
-    residual coordinates condensed onto the springs, a Rayleigh–Ritz restriction: never below it (to round-off),
+    residual coordinates condensed onto the springs, a Rayleigh–Ritz restriction: never below it (to round-off, 1e-10),
     and above by ≤ 6e-11 here with accurate eigen-solves. The public dense solvers add their own ~1e-8 scatter."""
     disk, blade = rom_models.disk_cb(), rom_models.blade(keep_basis=False)
     sprung = with_contact_stiffness(blade, interface_compliance(parts, STIFF))
@@ -65,7 +65,8 @@ def test_spring_model_matches_the_compliance_formulation(model, parts):
         primal = _exact(model.K(model.parameters(pat)), model.M, 10)
         asm = assemble_d1b(disk, sprung, pat)
         rel = _exact(asm.K, asm.M, 10) / primal - 1
-        assert np.all(rel > -1e-11) and np.all(rel < 1e-9)
+        # round-off: springs 1e8 times stiffer than the blade leave ~1e-11 of scatter (-2.4e-11 on one machine)
+        assert np.all(rel > -1e-10) and np.all(rel < 1e-9)
         got = solve_spring_d1b(model, pat, 10).frequencies_hz
         np.testing.assert_allclose(got, solve_d1b(disk, sprung, pat, n_modes=10).frequencies_hz, rtol=5e-8)
 
