@@ -402,11 +402,9 @@ def _restart_participations(frf: FRFSet, win: FamilyWindow, window: tuple[float,
         if c < cost:
             part, cost = trial, c
             pivot[r] = alt_pivot[r]
-    # refined even when no participation changed: a fresh refinement (its damping step reset) can leave a local
-    # minimum where the last one stalled (a 6-blade campaign's noise-fitting 646.9 Hz pole sat at ζ 4e-4 and was
-    # kept, 3.6 % from every true mode; refined once more it runs to the lower bound, where it is dropped)
-    f, zeta, part = _refine(win, f, zeta, part, pivot)
-    return f, zeta, part, pivot
+    # always: a fresh refinement leaves where the last stalled (a 6-blade campaign's noise pole at 646.9 Hz, ζ 4e-4,
+    # 3.6 % off, was kept; refined again it runs to the lower bound and is dropped: design §8.52)
+    return (*_refine(win, f, zeta, part, pivot), pivot)
 
 
 def _result(win, window, f, zeta, part, pivot, n_start) -> FamilyFit:
