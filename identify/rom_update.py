@@ -15,7 +15,8 @@ whose patterns are known, also fix the contact stiffness through the disk-domina
   derivative with respect to a diagonal stiffness entry is ``φ_k,i²`` for mass-normalised modes);
 * :func:`fit_corrections` — one blade's ε by regularised Gauss–Newton (prior: Eq. 19, ε = 0);
 * :func:`fit_contact_stiffness` — ``k_n``, ``k_t`` with the filmed blades' ε, jointly (Levenberg–Marquardt);
-* :func:`calibration_warnings` — the one-line warnings on data the calibration cannot use.
+* :mod:`identify.in_situ` — which corrections to trust, and the one-line warnings on data the calibration
+  cannot use.
 
 The full-assembly test never enters: every function here takes disk–one-blade data only.
 """
@@ -36,15 +37,15 @@ from .tracking import ModeTracker, assign_modes, common_coords, d1b_pencil
 
 __all__ = ["ROM_ERROR", "PRIOR_STD", "STOP_SHARE", "DISAGREE_BOUND", "BLADE_SHARE_MIN", "InSituFit", "StiffnessFit",
            "UpdatedROM", "tracked_sensitivity", "calibrated_modes", "fit_corrections", "fit_contact_stiffness",
-           "start_stiffness", "calibration_warnings", "noise_floor"]
+           "start_stiffness", "noise_floor"]
 
 #: Prior standard deviation of an in-situ correction ε (relative eigenvalue). Wide on purpose: a blade mode
 #: that a disk–one-blade test sees is set by the test; one that no tracked mode sees stays at Eq. 19.
 PRIOR_STD = 0.05
-#: |ε| beyond which free and in-situ data of a blade's mode are said to disagree (relative eigenvalue, about
-#: 5 % in frequency): more than twice the largest free-blade deviation a specimen of one design shows (about
-#: 2 %). Not the blade, then: a joint the model's pattern misrepresents (ε absorbs it), or a mislabelled or
-#: damaged test. On the bundled (realistic) campaign, all four blades past it are correctly labelled.
+#: |ε − the blades' median| beyond which free and in-situ data of a blade's mode are said to disagree (relative
+#: eigenvalue, about 5 % in frequency): more than twice the largest free-blade deviation a specimen of one design
+#: shows (about 2 %). Not the blade, then: a joint the model's pattern misrepresents (ε absorbs it), or a
+#: mislabelled or damaged test (identify.in_situ).
 DISAGREE_BOUND = 0.10
 #: A tracked mode is blade-dominated when the blade's free modes hold at least this share of its stiffness.
 BLADE_SHARE_MIN = 0.5
@@ -216,7 +217,8 @@ def calibrated_modes(jacobian: np.ndarray) -> np.ndarray:
 
 
 def fit_corrections(tracker: ModeTracker, pattern: ContactPattern, delta: np.ndarray, measured_hz: np.ndarray,
-                    sigma_rel: np.ndarray, *, prior_std: float = PRIOR_STD, n_iter: int = 3) -> InSituFit:
+                    sigma_rel: np.ndarray, *, prior_std: float = PRIOR_STD, n_iter: int = 3,
+                    held: np.ndarray | None = None) -> InSituFit:
     """One blade's in-situ correction ε from its disk–one-blade test (regularised Gauss–Newton in ln f).
 
     Only :func:`calibrated_modes` are corrected; the others keep ε = 0.
@@ -233,13 +235,18 @@ def fit_corrections(tracker: ModeTracker, pattern: ContactPattern, delta: np.nda
         The test's frequencies on the tracked modes (NaN: not found).
     sigma_rel : ndarray, shape (n_tracked,)
         Relative noise of each (:func:`noise_floor`).
+    held : ndarray, shape (m,), optional
+        ε held at these values, not fitted (NaN: fitted as usual): the blades' common correction for a mode
+        that this test cannot see (:func:`unobserved_modes`, :func:`population_centre`).
     """
     delta = np.asarray(delta, np.float64)
     y = np.asarray(measured_hz, np.float64)
     use = np.isfinite(y) & (y > 0)
-    eps = np.zeros(delta.size)
+    fixed = np.zeros(delta.size, bool) if held is None else np.isfinite(held)
+    eps = np.where(fixed, held if held is not None else 0.0, 0.0)
     f, jac = tracked_sensitivity(tracker, pattern, delta + eps)
     free = calibrated_modes(jac)
+    free = free[~fixed[free]]
     for _ in range(n_iter if use.any() and free.size else 0):
         step = _gn_step(np.log(y[use] / f[use]), jac[np.ix_(use, free)], np.asarray(sigma_rel)[use], eps[free],
                         prior_std)
@@ -423,45 +430,3 @@ class _StiffnessProblem:
             A[blk, blk] += 1 / self.prior_std**2
             b[blk] -= eps[j][fr] / self.prior_std**2
         return A, b
-
-
-def calibration_warnings(blade: int, fit: InSituFit, free_hz: np.ndarray, *, bound: float = DISAGREE_BOUND,
-                         filmed: bool = False) -> list[str]:
-    """One line per problem of one blade's calibration data, naming the blade and the mode.
-
-    * a blade-dominated tracked mode that its disk–one-blade test lacks, where no found tracked mode is dominated
-      by the same free mode: that free mode is then set only by the other tracked modes' small shares of it,
-      which carry the model's errors too (the line gives its correction where it passes ``bound``);
-    * a free mode whose in-situ correction exceeds ``bound``: the test and the model disagree by more than a
-      blade's free-test scatter explains. On a blade whose files are right, that is the joint: a pattern
-      (identified, or for a ``filmed`` joint its film) that the test does not bear out, since ε absorbs
-      whatever the pattern leaves unexplained. So the line names the joint first and the files second.
-
-    Parameters
-    ----------
-    free_hz : ndarray, shape (m,)
-        The ROM blade's free-interface frequencies (Hz), to name the modes.
-    filmed : bool
-        Whether the blade's joint was filmed (its pattern is the film's, not an identified one).
-    """
-    out, missing = [], {}
-    blade_rows = fit.blade_share >= BLADE_SHARE_MIN
-    found = set(fit.dominant_mode[blade_rows & np.isfinite(fit.measured_hz)].tolist())
-    for k in np.flatnonzero(blade_rows & ~np.isfinite(fit.measured_hz)):
-        if int(fit.dominant_mode[k]) not in found:  # another found mode it dominates calibrates it: nothing lost
-            missing.setdefault(int(fit.dominant_mode[k]), int(k))
-    for i, k in missing.items():
-        far = (f", to {100 * fit.correction[i]:+.1f} % (eigenvalue), beyond ±{100 * bound:.0f} %"
-               if abs(fit.correction[i]) > bound else "")
-        out.append(f"blade {blade}: its disk–one-blade test lacks tracked mode {k + 1} "
-                   f"({fit.frequencies_hz[k]:.1f} Hz, blade-dominated): free mode {i + 1} ({free_hz[i]:.1f} Hz) "
-                   f"is corrected only through the other tracked modes' small shares of it{far}")
-    cause = (f"joint {blade}'s film (the joint seated differently in the disk–one-blade test)" if filmed
-             else f"joint {blade}'s identified pattern (a contact outside the films' family)")
-    for i in np.flatnonzero(np.abs(fit.correction) > bound):
-        if int(i) in missing:
-            continue
-        out.append(f"blade {blade}, free mode {i + 1} ({free_hz[i]:.1f} Hz): in-situ correction "
-                   f"{100 * fit.correction[i]:+.1f} % (eigenvalue), beyond ±{100 * bound:.0f} %: the disk–one-blade "
-                   f"test disagrees with the model; most likely {cause}, else the files' labels")
-    return out
