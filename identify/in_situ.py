@@ -33,8 +33,8 @@ def population_centre(corrections: np.ndarray, seen: np.ndarray | None = None) -
 
     What every blade of one design shares (the model's own error in the blade as seated) is not a blade's
     disagreement with its files: :func:`calibration_warnings` measures each blade from it, and a blade whose
-    test cannot see a mode takes it (:func:`fit_corrections`' ``held``). Fewer than 3 blades give no median that
-    one odd blade cannot move: NaN there.
+    test cannot see a mode takes it (``held`` of :func:`identify.rom_update.fit_corrections`). Fewer than 3
+    blades give no median that one odd blade cannot move: NaN there.
 
     Parameters
     ----------

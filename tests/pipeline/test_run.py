@@ -386,11 +386,13 @@ def test_the_updated_roms_control_is_case_b_with_the_baseline_and_with_the_truth
     assert same(case_b(res["patterns/baseline"]), control)
     assert same(case_b(res["reference"]), cases["C"])
     # teeth: the control is neither Case C nor the answer's Case B, and its re-fitted ε differs from the answer's
-    # only at the unfilmed joints (the films are in both sets of patterns)
+    # at the unfilmed joints; at a filmed one (its film in both sets of patterns) only in a mode its test cannot
+    # see, which takes the blades' common value (identify.in_situ) that the unfilmed joints' patterns move
     assert not same(control, cases["C"]) and not same(control, cases["B"])
     eps_base, eps_answer = res["rom_update/baseline"].corrections, res["rom_update/answer"].corrections
     filmed = np.array([j - 1 for j in res["known"]])
-    np.testing.assert_array_equal(eps_base[filmed], eps_answer[filmed])
+    moved = ~np.isclose(eps_base[filmed], eps_answer[filmed], rtol=1e-5, atol=1e-9)
+    assert np.all(moved.sum(axis=1) <= 1), (eps_base[filmed], eps_answer[filmed])
     assert not np.allclose(np.delete(eps_base, filmed, 0), np.delete(eps_answer, filmed, 0))
     # the report: the control beside B (the run's answer) and C (the true patterns), and what it means
     assert [r[0] for r in csv_rows(out / "rom_cases.csv")] == ["A", "B", "B_baseline", "C"]
