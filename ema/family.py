@@ -402,7 +402,7 @@ def _restart_participations(frf: FRFSet, win: FamilyWindow, window: tuple[float,
         if c < cost:
             part, cost = trial, c
             pivot[r] = alt_pivot[r]
-    # always: a fresh refinement leaves where the last stalled (a 6-blade campaign's noise pole at 646.9 Hz, ζ 4e-4,
+    # always: a fresh refinement moves on where the last stopped (a 6-blade campaign's noise pole, 646.9 Hz, ζ 4e-4,
     # 3.6 % off, was kept; refined again it runs to the lower bound and is dropped: design §8.52)
     return (*_refine(win, f, zeta, part, pivot), pivot)
 

@@ -237,7 +237,7 @@ def fit_corrections(tracker: ModeTracker, pattern: ContactPattern, delta: np.nda
         Relative noise of each (:func:`noise_floor`).
     held : ndarray, shape (m,), optional
         ε held at these values, not fitted (NaN: fitted as usual): the blades' common correction for a mode
-        that this test cannot see (:func:`unobserved_modes`, :func:`population_centre`).
+        that this test cannot see (:mod:`identify.in_situ`).
     """
     delta = np.asarray(delta, np.float64)
     y = np.asarray(measured_hz, np.float64)
