@@ -7,11 +7,13 @@ test that lacks the tracked mode a free mode dominates cannot set that mode: it 
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numpy as np
 
 from .rom_update import BLADE_SHARE_MIN, DISAGREE_BOUND, InSituFit
 
-__all__ = ["unobserved_modes", "population_centre", "calibration_warnings"]
+__all__ = ["unobserved_modes", "population_centre", "common_correction", "held_at_common", "calibration_warnings"]
 
 
 def unobserved_modes(fit: InSituFit) -> dict[int, int]:
@@ -49,6 +51,27 @@ def population_centre(corrections: np.ndarray, seen: np.ndarray | None = None) -
         if np.count_nonzero(seen[:, i]) >= 3:
             out[i] = np.median(eps[seen[:, i], i])
     return out
+
+
+def common_correction(fits: Sequence[InSituFit], m: int) -> np.ndarray:
+    """:func:`population_centre` of the blades' fits, each seeing the modes :func:`unobserved_modes` leaves,
+    shape (m,) (NaN where fewer than 3 see it; all NaN without fits)."""
+    if not fits:
+        return np.full(m, np.nan)
+    eps = np.array([f.correction for f in fits])
+    seen = np.ones(eps.shape, bool)
+    for row, fit in enumerate(fits):
+        seen[row, list(unobserved_modes(fit))] = False
+    return population_centre(eps, seen)
+
+
+def held_at_common(fit: InSituFit, centre: np.ndarray) -> np.ndarray | None:
+    """``held`` for a blade's refit (:func:`identify.rom_update.fit_corrections`): the common value of each mode
+    its test cannot see, NaN elsewhere; None where there is nothing to hold."""
+    hold = np.full(np.size(centre), np.nan)
+    for i in unobserved_modes(fit):
+        hold[i] = centre[i]
+    return hold if np.isfinite(hold).any() else None
 
 
 def calibration_warnings(blade: int, fit: InSituFit, free_hz: np.ndarray, *, bound: float = DISAGREE_BOUND,

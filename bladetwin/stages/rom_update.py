@@ -13,7 +13,7 @@ from dataclasses import replace
 import numpy as np
 
 from identify.dataset import Dataset
-from identify.in_situ import calibration_warnings, population_centre, unobserved_modes
+from identify.in_situ import calibration_warnings, common_correction, held_at_common
 from identify.rom_update import (
     StiffnessFit,
     UpdatedROM,
@@ -107,9 +107,9 @@ def update_node(disk, blade, dataset: Dataset, features: Features, delta_all: np
         res_paper[j - 1] = (y / f_paper - 1) * 100
     # what all blades share (the model's own error in the seated blade), from the blades that see each mode; a
     # blade whose test cannot see a mode takes it, and each is measured from it: design §8.53
-    centre = _common(fits, m)
+    centre = common_correction(list(fits.values()), m)
     for k, j in enumerate(int(j) for j in features.joints):
-        if j in fits and (hold := _held(fits[j], centre)) is not None:
+        if j in fits and (hold := held_at_common(fits[j], centre)) is not None:
             fits[j] = fit_corrections(upd, patterns[j - 1], delta_all[j - 1], features.measured_hz[k], sigma[j],
                                       held=hold)
     for j, fit in fits.items():
@@ -119,25 +119,6 @@ def update_node(disk, blade, dataset: Dataset, features: Features, delta_all: np
         for text in calibration_warnings(j, fit, free_hz, filmed=filmed, centre=centre):
             warnings.warn(text, UserWarning, stacklevel=2)
     return UpdatedROM(stiff, eps, done, res, res_paper, free_hz)
-
-
-def _common(fits: dict, m: int) -> np.ndarray:
-    """The blades' common correction per free mode (NaN: fewer than 3 blades see it)."""
-    if not fits:
-        return np.full(m, np.nan)
-    eps = np.array([f.correction for f in fits.values()])
-    seen = np.ones(eps.shape, bool)
-    for row, fit in enumerate(fits.values()):
-        seen[row, list(unobserved_modes(fit))] = False
-    return population_centre(eps, seen)
-
-
-def _held(fit, centre: np.ndarray) -> np.ndarray | None:
-    """The ε to hold in a blade's refit: the common value of each mode its test cannot see (None: nothing)."""
-    hold = np.full(centre.size, np.nan)
-    for i in unobserved_modes(fit):
-        hold[i] = centre[i]
-    return hold if np.isfinite(hold).any() else None
 
 
 def solve_updated(cyclic: CyclicBuild, bd, blade: RubinModel, patterns: list[ContactPattern], delta_all: np.ndarray,

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from identify.errors import IdentifyError
-from identify.in_situ import calibration_warnings, population_centre, unobserved_modes
+from identify.in_situ import calibration_warnings, held_at_common, population_centre, unobserved_modes
 from identify.rom_update import (
     InSituFit,
     calibrated_modes,
@@ -182,8 +182,8 @@ def test_a_mode_the_test_cannot_see_takes_the_blades_common_value(setup):
     sigma = noise_floor(np.full(y.size, np.nan))
     free_fit = fit_corrections(sprung, pats[1], delta, y, sigma)
     assert list(unobserved_modes(free_fit)) == [lost]
-    hold = np.full(m, np.nan)
-    hold[lost] = eps[lost]  # the blades' common value, here the truth's
+    hold = held_at_common(free_fit, eps)  # the blades' common values, here the truth's
+    assert np.flatnonzero(np.isfinite(hold)).tolist() == [lost]
     held = fit_corrections(sprung, pats[1], delta, y, sigma, held=hold)
     assert held.correction[lost] == eps[lost]
     rest = modes[modes != lost]
