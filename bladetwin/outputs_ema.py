@@ -82,7 +82,8 @@ def _ema_tables(res: RunResult, out: Path, notes: list[str]) -> list[dict]:
               [[int(j), *map(blank, mh[k])] for k, j in enumerate(res.joints)])
     tables.append({"file": "d1b_frequencies.csv", "caption": "Disk–one-blade natural frequencies (Hz) per joint "
                    "(paper Table 3): each joint's EMA modes matched to the tracked ROM modes within "
-                   f"{100 * MATCH_WINDOW:.0f} % (empty: not found)."})
+                   f"{100 * MATCH_WINDOW:.0f} % of the ROM's frequency moved by the joints' median offset, the "
+                   "ROM's untracked modes taking their own (empty: not found)."})
     asm = [fit for t, fit in res.ema.values() if t.type == "assembly"]
     if asm:
         tables.append(assembly_table(asm[0].model, out))

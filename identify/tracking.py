@@ -208,6 +208,19 @@ class ModeTracker:
         delta : float or array_like, optional
             Blade mistuning, relative; a vector perturbs the first ``len(delta)`` blade modes.
         """
+        f, cols, vals = self._solve(pattern, delta)
+        return TrackedModes(f[cols], vals)
+
+    def untracked_hz(self, pattern: ContactPattern, delta=None) -> np.ndarray:
+        """The solve's candidate modes that no tracked mode took (Hz, ascending, shape (n_extra,)).
+
+        A measured mode near one of them is that mode, not a tracked one: the pairing with a test
+        (``bladetwin.stages.bias.match_to_reference``) keeps them as neighbours. Same arguments as :meth:`track`.
+        """
+        f, cols, _ = self._solve(pattern, delta)
+        return np.sort(np.delete(f, cols))
+
+    def _solve(self, pattern: ContactPattern, delta) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         K, M = d1b_pencil(self.disk, self.blade, pattern.L, pattern.R, formulation=self.formulation,
                           delta=delta)
         n_cand = self.n_modes + self.n_extra
@@ -215,4 +228,4 @@ class ModeTracker:
             dm = dense_modes(K, M, n_cand, max_rigid=6)
             common = common_coords(K.shape[0], self.disk, self.blade)
             cols, vals = assign_modes(mac(self.shapes, dm.shapes[common], weight=self.weight))
-        return TrackedModes(np.asarray(dm.frequencies_hz[cols], np.float64), vals)
+        return np.asarray(dm.frequencies_hz, np.float64), cols, vals

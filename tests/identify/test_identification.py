@@ -88,3 +88,20 @@ def test_tracker_matches_the_dataset_on_its_own_samples(setup):
         iL, iR = ds.pair[s]
         f = tracker.track(ContactPattern(ds.patterns_L[iL], ds.patterns_R[iR]), ds.deltas[s]).frequencies_hz
         np.testing.assert_allclose(f, ds.frequencies_hz[s], rtol=1e-4)
+
+
+def test_the_untracked_modes_are_the_solves_other_candidates(setup):
+    """untracked_hz and track split the direct solve's candidates: every one once, none tracked twice."""
+    from identify.tracking import d1b_pencil
+    from rom.modal import dense_modes
+
+    ds, tracker, _, _ = setup
+    iL, iR = ds.pair[len(ds.deltas) // 2]
+    pattern, delta = ContactPattern(ds.patterns_L[iL], ds.patterns_R[iR]), ds.deltas[len(ds.deltas) // 2]
+    K, M = d1b_pencil(tracker.disk, tracker.blade, pattern.L, pattern.R, formulation=tracker.formulation,
+                      delta=delta)
+    every = dense_modes(K, M, tracker.n_modes + tracker.n_extra, max_rigid=6).frequencies_hz
+    others = tracker.untracked_hz(pattern, delta)
+    assert others.size == tracker.n_extra and np.all(np.diff(others) >= 0)
+    both = np.sort(np.r_[tracker.track(pattern, delta).frequencies_hz, others])
+    np.testing.assert_allclose(both, np.sort(every), rtol=1e-7)  # one BLAS thread there, several here

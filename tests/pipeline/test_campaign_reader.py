@@ -5,9 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+import ema
 from bladetwin.campaign import CampaignError, read_campaign
 from bladetwin.cli import main
-from bladetwin.stages.bias import known_bias, match_to_reference
+from bladetwin.stages.bias import known_bias, match_to_reference, recentred_reference
 from bladetwin.stages.patterns import mean_known_pattern
 from rom.contact import ContactPattern
 
@@ -109,6 +110,43 @@ def test_match_to_reference_is_one_to_one_within_the_window():
     np.testing.assert_array_equal(got[:3], [99.0, 201.0, 204.0])
     assert np.isnan(got[3])  # 330 Hz is 17.5 % away from 400 Hz
     assert np.isnan(match_to_reference(np.array([]), ref)).all()
+
+
+def test_match_to_reference_leaves_a_mode_unpaired_rather_than_push_the_others_off():
+    # a realistic twin's joint (coarse seed 41, joint 3): its test's modes 9 and 10 at 3426.7 and 3342.9 Hz, a
+    # spurious pole at 3196.6 Hz; the model's next, untracked mode at 3598.9 Hz
+    measured = np.array([3196.6, 3342.9, 3426.7])
+    got = match_to_reference(measured, np.array([3438.1, 3346.8]), neighbours_hz=np.array([3598.9]))
+    np.testing.assert_array_equal(got, [3426.7, 3342.9])
+    # pairing as many modes as possible gives the neighbour 3426.7 Hz (4.8 %) and shifts both tracked modes
+    rows, cols = ema.pair_by_frequency(np.array([3438.1, 3346.8, 3598.9]), measured, 0.05)
+    assert measured[cols[rows == 1]][0] == 3196.6
+
+
+def test_a_neighbouring_untracked_mode_keeps_its_own_measured_mode():
+    # coarse seed 43, joint 1: the model's tracked modes 9, 10 and its untracked mode 11 at 3649.6 Hz; the
+    # specimen's mode 10 is 3398.0 Hz, 3.8 % below the model's, and its mode 11 sits where the model's does
+    ref, measured = np.array([3462.5, 3535.1]), np.array([3398.0, 3436.9, 3650.2])
+    np.testing.assert_array_equal(match_to_reference(measured, ref), [3436.9, 3650.2])
+    np.testing.assert_array_equal(match_to_reference(measured, ref, neighbours_hz=np.array([3649.6])),
+                                  [3436.9, 3398.0])
+
+
+def test_the_second_pairing_is_centred_where_the_joints_agree():
+    # Eight joints (coarse seed 43's, two made closer to the model) whose mode 10 lies 2.6-3.9 % below the
+    # model's 3535.1 Hz and whose mode 9 lies 0.4-0.8 % below 3462.5 Hz; every test also has the next mode at
+    # 3650.5 Hz. The truth is the construction.
+    true = np.array([[3436.9, 3398.0], [3447.9, 3425.4], [3435.5, 3431.0], [3439.9, 3428.0],
+                     [3444.7, 3441.1], [3442.7, 3395.9], [3446.6, 3432.6], [3448.0, 3429.4]])
+    tests = [np.r_[t, 3650.5] for t in true]
+    ref = np.tile([3462.5, 3535.1], (len(true), 1))
+    first = np.array([match_to_reference(f, r) for f, r in zip(tests, ref, strict=True)])
+    np.testing.assert_array_equal(np.flatnonzero(first[:, 1] == 3650.5), [0, 5])  # joints 1 and 6: the next mode
+    centred = recentred_reference(first, ref)
+    second = np.array([match_to_reference(f, r) for f, r in zip(tests, centred, strict=True)])
+    np.testing.assert_array_equal(second, true)
+    # fewer than 3 joints with a mode: no median to trust, the reference stays
+    np.testing.assert_array_equal(recentred_reference(first[:2], ref[:2]), ref[:2])
 
 
 def test_known_bias_is_the_median_ratio_and_ignores_unmatched_modes():
