@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import logging
 import os
+import tempfile
 from pathlib import Path
 from typing import Any
 
@@ -27,10 +28,25 @@ log = logging.getLogger(__name__)
 def _atomic_write(path: Path, dsets: list[dict], single: bool = False) -> None:
     """Write data sets to ``path`` through a temporary file in the same folder and ``os.replace``."""
     with atomic_path(path) as tmp:
-        tmp.unlink()  # pyuff appends to existing files; start from nothing
-        pyuff.UFF(str(tmp)).write_sets(dsets, mode="add")
-        if single:
-            tmp.write_bytes(_as_single(tmp.read_bytes()))
+        raw = _pyuff_bytes(dsets)
+        tmp.write_bytes(_as_single(raw) if single else raw)
+
+
+def _pyuff_bytes(dsets: list[dict]) -> bytes:
+    """pyuff's bytes of ``dsets``, each set written on its own and the bytes joined in order.
+
+    Why: pyuff re-reads the whole file after every set it appends (``UFF.refresh``), so one file of n sets costs
+    O(n²): a 6-blade campaign's 552 sets spent 7 of their 11 s writing there. A set appended to a file does not
+    depend on the sets before it, so the joined bytes are those of one file.
+    """
+    out = []
+    with tempfile.TemporaryDirectory(prefix="bladetwin-uff-") as scratch:
+        one = Path(scratch) / "set.uff"
+        for dset in dsets:
+            one.unlink(missing_ok=True)
+            pyuff.UFF(str(one)).write_sets(dset, mode="add")
+            out.append(one.read_bytes())
+    return b"".join(out)
 
 
 def even_axis(freq: np.ndarray) -> bool:
