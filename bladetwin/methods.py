@@ -8,11 +8,13 @@ from __future__ import annotations
 
 import numpy as np
 
+from identify.film_next import rank_film_next
 from identify.posterior import WIDTH_NAMES, prior_intervals, width_ratio
 from identify.validation import contact_area_fraction, contact_centroid, geometric_validation
 from rom.academic import flank_coordinates
 
-__all__ = ["methods_summary", "posterior_rows", "POSTERIOR_HEADER", "posterior_frequency_rows", "FREQUENCY_HEADER"]
+__all__ = ["methods_summary", "film_next", "posterior_rows", "POSTERIOR_HEADER", "posterior_frequency_rows",
+           "FREQUENCY_HEADER"]
 
 POSTERIOR_HEADER = ["joint", "area L (%)", "area L 5 %", "area L 95 %", "area R (%)", "area R 5 %", "area R 95 %",
                     "reference area L (%)", "reference area R (%)", "centroid u L (mm)", "u L 5 %", "u L 95 %",
@@ -106,6 +108,7 @@ def methods_summary(res) -> dict:
             entry["width_ratio"] = {name: _width_ratio(res.posterior.get(name, {}), widths) for name in inputs}
             entry["area_ci90_median_width_pp"] = {name: _area_width(res.posterior.get(name, {})) for name in inputs}
             entry["diagnostics"] = {name: _diagnostics(res.posterior.get(name, {})) for name in inputs}
+            entry["film_next"] = film_next(res)
             s = res.posterior["surrogate"]
             entry["surrogate"] = {"error_pct": s.error_pct.tolist(), "max_error_pct": s.max_error_pct.tolist(),
                                   "n_train": s.n_train, "n_test": s.n_test}
@@ -117,6 +120,20 @@ def methods_summary(res) -> dict:
         # the majority pattern on every joint, the bar both methods must clear
         out["baseline"] = _geometry([res.baseline_pattern] * res.campaign.n_blades, res.reference, joints, res.bd)
     return out
+
+
+def film_next(res, input: str = "experimental") -> list[dict]:
+    """``methods.posterior.film_next``: the unfilmed joints, best to film first (:func:`identify.film_next.
+    rank_film_next`), each with ``joint``, ``outside_pp`` and ``width_pp``; empty without films or posteriors."""
+    posts = res.posterior.get(input, {})
+    if not posts or not res.known:
+        return []
+    joints = sorted(posts)
+    answers = [res.answers["posterior"][input][j - 1] for j in joints]
+    area = np.array([contact_area_fraction(np.stack([p.L, p.R])) for p in answers])
+    films = np.array([contact_area_fraction(np.stack([p.L, p.R])) for p in res.known.values()])
+    ranked = rank_film_next(joints, area, np.array([posts[j].area_pct_ci90 for j in joints]), films)
+    return [{"joint": c.joint, "outside_pp": c.outside_pp, "width_pp": c.width_pp} for c in ranked]
 
 
 def posterior_rows(res, input: str = "experimental") -> list[list]:

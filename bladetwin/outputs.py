@@ -264,6 +264,7 @@ def _posterior_section(res: RunResult, out: Path, methods: dict) -> list[dict]:
                     + f". The test narrows {min(ratio, key=ratio.get)} most and {max(ratio, key=ratio.get)} least; "
                       "what it leaves near 1 comes from the films' family (the prior).")
     text += _chains_text((m.get("diagnostics") or {}).get("experimental") or {})
+    text += _film_next_text(m.get("film_next") or [])
     return [{"id": "posterior", "title": "Contact posterior: every unfilmed joint with its confidence",
              "text": text,
              "figures": [{"file": fig, "caption": "Posterior probability of contact at each node (left pair), beside "
@@ -277,6 +278,17 @@ def _posterior_section(res: RunResult, out: Path, methods: dict) -> list[dict]:
                          "caption": "Each unfilmed joint's tracked disk–one-blade frequencies: the test's (bias "
                          "removed), the posterior's answer and the 90 % interval of the ROM's frequency over the "
                          "posterior (model error not included)."}]}]
+
+
+def _film_next_text(ranked: list[dict]) -> list[str]:
+    """Which joints to film next, best first (``methods.posterior.film_next``)."""
+    if not ranked:
+        return []
+    items = [f"joint {c['joint']} ({c['outside_pp']:.0f} pp outside, {c['width_pp']:.0f} pp wide)" for c in ranked]
+    return ["Film next: " + ", ".join(items) + ". First the joint whose answer lies furthest outside the films' range "
+            "of contact area (pp over both flanks), then the widest interval: a film there changes the family every "
+            "other joint is drawn from most. It may widen the other joints' intervals: where the films are few, "
+            "they are too narrow (identify.film_next)."]
 
 
 def _chains_text(diag: dict) -> list[str]:

@@ -13,6 +13,7 @@ Public API (see each module for details):
 - :mod:`identify.knn`: the two-step weighted k-NN (Eqs. 33–36, 39)
 - :mod:`identify.refine`: a compass search after the k-NN, in the synthetic family and the contact level
 - :mod:`identify.validation`: step-1 grid error, geometric and dynamic validation (Eqs. 40–42, Table 8)
+- :mod:`identify.film_next`: the unfilmed joints ranked for the next film (beyond the paper)
 - :mod:`identify.plots`: the figures of paper §6–§7 (reading results only; imported on demand)
 - :mod:`identify.errors`: :class:`IdentifyError`, the one-line errors written for users
 """

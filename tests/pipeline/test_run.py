@@ -22,6 +22,8 @@ from bladetwin.campaign import read_campaign
 from bladetwin.cli import main
 from bladetwin.stages import RunOptions
 from bladetwin.stages.patterns import film_patterns, read_films
+from identify.film_next import outside_family_pp
+from identify.posterior import MAX_EXTENSIONS
 from identify.rom_update import ROM_ERROR
 from identify.validation import contact_area_fraction
 from rom.pattern_io import load_patterns
@@ -300,7 +302,7 @@ def test_posterior_runs_without_truth_and_answers_every_unfilmed_joint(campaign,
     unfilmed = {j["joint"] for j in s["joints"] if j["joint"] not in known}
     assert {int(j) for j in diag} == unfilmed
     for j, d in diag.items():
-        assert d["rhat"] >= 1.0 and d["ess"] > 0 and d["n_steps"] in (500, 1000, 1500)
+        assert d["rhat"] >= 1.0 and d["ess"] > 0 and d["n_steps"] in range(500, 500 * (MAX_EXTENSIONS + 1) + 1, 500)
         assert d["converged"] == (d["rhat"] <= 1.05 and d["ess"] >= 400)
         assert d["converged"] != any(w.startswith(f"joint {j}, experimental input: the contact posterior's chains")
                                      for w in s["warnings"])
@@ -309,6 +311,17 @@ def test_posterior_runs_without_truth_and_answers_every_unfilmed_joint(campaign,
     assert all(r[7] == r[8] == "" for r in rows)  # reference areas blank, not "None"
     freq = list(csv.DictReader((out / "posterior_frequencies.csv").read_text().splitlines()))
     assert {int(r["joint"]) for r in freq} == {int(r[0]) for r in rows}
+    # film next: every unfilmed joint once, its distance outside the films' areas as the table's answer gives it
+    films = [[j["area_fraction_L_pct"], j["area_fraction_R_pct"]] for j in s["joints"] if j["joint"] in known]
+    nxt = post["film_next"]
+    assert sorted(c["joint"] for c in nxt) == sorted(unfilmed)
+    by_joint = {int(r[0]): r for r in rows}
+    for c in nxt:
+        r = by_joint[c["joint"]]
+        assert c["outside_pp"] == pytest.approx(outside_family_pp([float(r[1]), float(r[4])], films), abs=1e-3)
+        assert c["width_pp"] == pytest.approx((float(r[3]) - float(r[2]) + float(r[6]) - float(r[5])) / 2, abs=1e-3)
+    keys = [(-c["outside_pp"], -c["width_pp"], c["joint"]) for c in nxt]
+    assert keys == sorted(keys)
     for r in freq:  # an interval, and the answer's offset from the test as written
         f = float(r["answer (Hz)"])
         assert float(r["5 % (Hz)"]) <= float(r["95 % (Hz)"])
@@ -316,7 +329,7 @@ def test_posterior_runs_without_truth_and_answers_every_unfilmed_joint(campaign,
             y = float(r["measured, bias removed (Hz)"])
             assert float(r["answer − measured (%)"]) == pytest.approx(100 * (f / y - 1), abs=2e-3)  # 6 digits
     html = (out / "report.html").read_text()
-    assert "Contact posterior" in html and "What the data pin down" in html
+    assert "Contact posterior" in html and "What the data pin down" in html and "Film next: joint" in html
     assert html.index("The answer.") < html.index("Full-assembly validation")  # the summary leads with it
 
 
