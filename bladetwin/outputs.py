@@ -284,11 +284,16 @@ def _film_next_text(ranked: list[dict]) -> list[str]:
     """Which joints to film next, best first (``methods.posterior.film_next``)."""
     if not ranked:
         return []
-    items = [f"joint {c['joint']} ({c['outside_pp']:.0f} pp outside, {c['width_pp']:.0f} pp wide)" for c in ranked]
-    return ["Film next: " + ", ".join(items) + ". First the joint whose answer lies furthest outside the films' range "
-            "of contact area (pp over both flanks), then the widest interval: a film there changes the family every "
-            "other joint is drawn from most. It may widen the other joints' intervals: where the films are few, "
-            "they are too narrow (identify.film_next)."]
+    def item(c: dict) -> str:
+        where = f"{c['outside_pp']:.0f} pp outside the films' areas" if c["outside_pp"] > 0 else "inside them"
+        return f"joint {c['joint']} ({where}, interval {c['width_pp']:.0f} pp wide)"
+
+    more = (f"; the order of all {len(ranked)} is in summary.json (methods.posterior.film_next)"
+            if len(ranked) > 3 else "")
+    return ["Film next: " + ", ".join(item(c) for c in ranked[:3]) + more + ". First the joint whose answer lies "
+            "furthest outside the films' range of contact area (pp over both flanks), then the widest interval: a film "
+            "there changes the family every other joint is drawn from most. It may widen the other joints' "
+            "intervals: where the films are few, they are too narrow (identify.film_next)."]
 
 
 def _chains_text(diag: dict) -> list[str]:
