@@ -230,7 +230,7 @@ def _identify_nodes(p: Pipeline, campaign, opts: RunOptions) -> None:
     p.add(Node(names.FEATURES, bias.features,
                {**rom, "dataset": names.DATASET, "delta_all": names.DELTA_ALL, "known": names.KNOWN,
                 "reference": names.REFERENCE, **_ema_of(campaign, "d1b")},
-               {"n_delta_modes": opts.n_delta_modes, "bias": opts.bias}, version=5,
+               {"n_delta_modes": opts.n_delta_modes, "bias": opts.bias}, version=6,
                label="bias on the filmed joints"))
     p.add(Node(names.PREDICTIONS, knn.predict, {"dataset": names.DATASET, "features": names.FEATURES,
                                                 "delta_all": names.DELTA_ALL, "known": names.KNOWN},
