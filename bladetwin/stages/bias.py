@@ -125,10 +125,10 @@ def recentred_reference(measured_hz: np.ndarray, reference_hz: np.ndarray) -> np
     """The joints' reference frequencies moved, per tracked mode, by the joints' median offset from them.
 
     Why: the model's error is shared by every joint (a realistic specimen's tracked mode 10 lies about 3 % below
-    the model's), and a window centred on the model then pairs a joint with a mode the test resolved poorly with
-    the next mode up rather than with the nearer one below (3650 Hz, not 3398 Hz, where the other joints agree
-    on 3390–3450 Hz: design §8.54). The median over the joints (at least 3, :func:`identify.in_situ.
-    population_centre`; else no move) is what the joints share, which one mispaired joint cannot move.
+    the model's, halfway to the next mode), and a window centred on the model can then give a joint's mode 10 the
+    next mode up (3650 Hz) instead of its own (3398 Hz; the other joints agree on 3390–3450 Hz: design §8.54).
+    The median over the joints (at least 3, :func:`identify.in_situ.population_centre`; else no move) is what the
+    joints share, which a minority of mispaired joints cannot move.
 
     Parameters
     ----------
