@@ -6,9 +6,9 @@ the one whose film changes that family most: the ranking puts first the joint wh
 the films' range of contact area (summed over both flanks), and among those inside it, the widest posterior.
 
 Measured on one small campaign (docs/design.md §8.56): with 2 films every posterior was overconfident (intervals
-0–10 pp wide, none covering the truth), and every added film widened the other joints' intervals. The film this
-ranking puts first cut their area error most (23.0 → 13.5 pp, coverage 0 → 1); the last one least. So the
-ranking says where a film helps, not where it narrows the others.
+0–10 pp wide, none covering the truth), and every added film widened the other joints' intervals. The ranking
+ordered the films by the area error they removed from the other joints: the first cut it most (27.8 → 15.1 pp),
+the last least (31.0 → 30.2 pp). So the ranking says where a film helps, not where it narrows the others.
 """
 
 from __future__ import annotations
