@@ -284,6 +284,7 @@ def _film_next_text(ranked: list[dict]) -> list[str]:
     """Which joints to film next, best first (``methods.posterior.film_next``)."""
     if not ranked:
         return []
+
     def item(c: dict) -> str:
         where = f"{c['outside_pp']:.0f} pp outside the films' areas" if c["outside_pp"] > 0 else "inside them"
         return f"joint {c['joint']} ({where}, interval {c['width_pp']:.0f} pp wide)"

@@ -36,8 +36,8 @@ def _pyuff_bytes(dsets: list[dict]) -> bytes:
     """pyuff's bytes of ``dsets``, each set written on its own and the bytes joined in order.
 
     Why: pyuff re-reads the whole file after every set it appends (``UFF.refresh``), so one file of n sets costs
-    O(n²): a 6-blade campaign's 552 sets spent 7 of their 11 s writing there. A set appended to a file does not
-    depend on the sets before it, so the joined bytes are those of one file.
+    O(n²): a 6-blade campaign's full-assembly file took 2.2 s, and 0.65 s set by set. A set appended to a file does
+    not depend on the sets before it, so the joined bytes are those of one file (the campaigns are byte-identical).
     """
     out = []
     with tempfile.TemporaryDirectory(prefix="bladetwin-uff-") as scratch:
