@@ -227,7 +227,8 @@ class ModePairing:
     mac_matrix: np.ndarray
 
 
-def pair_by_frequency(fa, fb, freq_window: float = 0.05) -> tuple[np.ndarray, np.ndarray]:
+def pair_by_frequency(fa, fb, freq_window: float = 0.05, *, unpaired_cost: bool = False
+                      ) -> tuple[np.ndarray, np.ndarray]:
     """Pair two frequency lists one-to-one (Hungarian on the relative distance) inside a window.
 
     For modes that shapes cannot tell apart (few measured DOFs), or lists without shapes.
@@ -238,6 +239,11 @@ def pair_by_frequency(fa, fb, freq_window: float = 0.05) -> tuple[np.ndarray, np
         Frequencies (Hz).
     freq_window : float
         A pair is admissible when ``|f_b - f_a| <= freq_window * f_a``.
+    unpaired_cost : bool
+        False (default): as many pairs as possible, then the smallest total distance. True: a mode of ``fa`` left
+        unpaired costs ``freq_window``, as much as the furthest admissible pair, so no pair is made at the price
+        of pushing others further off (the disk–one-blade pairing among the model's untracked modes,
+        ``bladetwin.stages.bias.match_to_reference``).
 
     Returns
     -------
@@ -250,7 +256,12 @@ def pair_by_frequency(fa, fb, freq_window: float = 0.05) -> tuple[np.ndarray, np
     if fa.size == 0 or fb.size == 0:
         return np.zeros(0, int), np.zeros(0, int)
     rel = np.abs(fb[None, :] / fa[:, None] - 1)
-    rows, cols = linear_sum_assignment(np.where(rel <= freq_window, rel, 1e6))
+    cost = np.where(rel <= freq_window, rel, 1e6)
+    if unpaired_cost:  # one "left unpaired" column per mode of fa
+        cost = np.hstack([cost, np.where(np.eye(fa.size, dtype=bool), freq_window, 1e6)])
+    rows, cols = linear_sum_assignment(cost)
+    keep = cols < fb.size
+    rows, cols = rows[keep], cols[keep]
     ok = rel[rows, cols] <= freq_window
     return rows[ok], cols[ok]
 

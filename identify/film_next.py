@@ -72,4 +72,4 @@ def rank_film_next(joints, area_pct: np.ndarray, ci90_pct: np.ndarray,
     ci = np.asarray(ci90_pct, float)
     out = [FilmCandidate(int(j), outside_family_pp(a, film_area_pct), float(np.mean(c[:, 1] - c[:, 0])))
            for j, a, c in zip(joints, np.asarray(area_pct, float), ci, strict=True)]
-    return sorted(out, key=lambda c: (-round(c.outside_pp, 9), -round(c.width_pp, 9), c.joint))
+    return sorted(out, key=lambda c: (-c.outside_pp, -c.width_pp, c.joint))

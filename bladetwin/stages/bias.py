@@ -6,7 +6,6 @@ import warnings
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize import linear_sum_assignment
 
 import ema
 from identify.dataset import Dataset
@@ -77,18 +76,11 @@ def match_to_reference(frequencies_hz: np.ndarray, reference_hz: np.ndarray, win
     ref = np.asarray(reference_hz, float).ravel()
     out = np.full(ref.size, np.nan)
     every = ref if neighbours_hz is None else np.r_[ref, np.asarray(neighbours_hz, float).ravel()]
-    if not f.size:
-        return out
-    # A mode left unpaired costs the window, as much as the furthest admissible pair: pairing as many modes as
-    # possible first (a plain Hungarian with forbidden pairs) would let a neighbour take a tracked mode's own
-    # measured mode and push the tracked one onto a pole further off.
-    rel = np.abs(f[None, :] / every[:, None] - 1.0)
-    far = 1e6
-    cost = np.hstack([np.where(rel <= window, rel, far), np.where(np.eye(every.size, dtype=bool), window, far)])
-    rows, cols = linear_sum_assignment(cost)
-    ok = (rows < ref.size) & (cols < f.size)
-    ok[ok] = rel[rows[ok], cols[ok]] <= window
-    out[rows[ok]] = f[cols[ok]]
+    # an unpaired mode costs the window: pairing as many modes as possible first would let a neighbour take a
+    # tracked mode's own measured mode and push the tracked one onto a pole further off
+    rows, cols = ema.pair_by_frequency(every, f, window, unpaired_cost=True)
+    mine = rows < ref.size
+    out[rows[mine]] = f[cols[mine]]
     return out
 
 

@@ -109,3 +109,17 @@ def test_weighted_mac_against_its_definition():
     assert np.all(mac(A, B, weight=W)[0] == 0.0) and np.all(mac(A, B)[0] == 0.0)
     with pytest.raises(EMAError, match="weight"):
         mac(A, B, weight=np.eye(5))
+
+
+def test_pair_by_frequency_with_an_unpaired_cost_leaves_a_mode_rather_than_push_two_off():
+    from ema.mac import pair_by_frequency
+
+    # 100 Hz has 100.2 Hz beside it; 104 Hz has only 100.2 Hz within 5 % (3.7 %), and 100 Hz also 96 Hz (4 %)
+    fa, fb = np.array([100.0, 104.0]), np.array([96.0, 100.2])
+    rows, cols = pair_by_frequency(fa, fb, 0.05)  # as many pairs as possible: 100 → 96, 104 → 100.2
+    assert rows.tolist() == [0, 1] and cols.tolist() == [0, 1]
+    # 104 Hz left unpaired costs 5 %: 0.2 % + 5 % is less than 4 % + 3.7 %
+    rows, cols = pair_by_frequency(fa, fb, 0.05, unpaired_cost=True)
+    assert rows.tolist() == [0] and cols.tolist() == [1]
+    # a pair further than the window is never made, with or without the cost
+    assert pair_by_frequency([100.0], [200.0], 0.05, unpaired_cost=True)[0].size == 0
