@@ -32,7 +32,8 @@ The result replaces the window's modes; their shapes come from ``ψ_r l_rᵀ`` a
 from the larger of two sandwich covariances of the structured fit: White's (the lines as clusters, as
 :func:`ema.uncertainty.pole_std`) and one whose meat comes from residuals drawn from the window's noise model
 (:func:`_result`). :func:`ema.families.resolve_families` runs it on every window of several modes;
-:func:`ema.unexplained.unexplained_lines` finds where a model leaves modes out, with :func:`noise_model`.
+:func:`ema.unexplained.unexplained_lines` finds where a model leaves modes out, with
+:func:`ema.fit_noise.noise_model`.
 """
 
 from __future__ import annotations
@@ -41,23 +42,19 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .fit_noise import noise_draws
 from .frf import FRF_FORMS, FRFSet
 from .gram import gauss_newton
 from .lsfd import half_widths, lsfd
 from .modal import modal_from_pole, pole_from_modal
 
-__all__ = ["FamilyFit", "FamilyWindow", "family_windows", "fit_family", "noise_model", "normalised_participations",
-           "step_parameters", "ZETA_BOUNDS", "STRONG"]
+__all__ = ["FamilyFit", "FamilyWindow", "damping_outlier_bound", "family_windows", "fit_family",
+           "normalised_participations", "step_parameters", "ZETA_BOUNDS"]
 
 #: Damping ratio bounds of the refinement (a pole driven to the lower bound is fitting a noise spike).
 ZETA_BOUNDS = (1e-5, 0.05)
 #: Levenberg–Marquardt iterations per refinement, and the relative cost decrease that ends it.
 MAX_ITER, TOL = 150, 1e-9
-#: Residual draws of the noise-model part of the standard deviations (:func:`_noise_draws`).
-N_DRAWS = 32
-#: A model value counts as strong, for the multiplicative noise share, where its power is this many times the
-#: FRF's additive floor (the floor then adds at most 1 % to the ratio).
-STRONG = 100.0
 
 
 @dataclass(frozen=True)
@@ -350,8 +347,12 @@ def fit_family(frf: FRFSet, poles: np.ndarray, window: tuple[float, float], core
                    else (np.zeros((win.n_in, 0), complex), np.zeros(0, int)))
     if f.size:
         f, zeta, part = _refine(win, f, zeta, part, pivot)
+    # every starting mode at a damping bound: the rank-one model does not describe the window (a 6-blade campaign's
+    # 417-716 Hz window, stretched by one pole at 2.6 % damping, sent all six to 5 %). Growth and the restart only
+    # repeated it (two more refinements, each to MAX_ITER: 6 of the fit's 16 s); every mode is dropped below.
+    hopeless = f.size > 0 and bool(np.all(_at_bound(zeta)))
     in_core = (win.freq >= core[0]) & (win.freq <= core[1])
-    for _ in range(cap):
+    for _ in range(0 if hopeless else cap):
         lam = pole_from_modal(f, zeta)
         res = win.solve(lam, part)[1] if f.size else win.Y
         rc = res.reshape(2, win.n_in, win.n_lines, win.n_out)
@@ -367,7 +368,7 @@ def fit_family(frf: FRFSet, poles: np.ndarray, window: tuple[float, float], core
             break
         f, zeta, part = trial
         pivot = np.r_[pivot, new_pivot]
-    if f.size:
+    if f.size and not hopeless:
         f, zeta, part, pivot = _restart_participations(frf, win, window, f, zeta, part, pivot)
     # a mode the later refinements drove to a damping bound fits the window's background (upper; a 6-blade
     # campaign kept one at 1116.5 Hz, 1 % from every true mode) or a noise spike (lower; the same campaign,
@@ -423,7 +424,7 @@ def _result(win, window, f, zeta, part, pivot, n_start) -> FamilyFit:
             # or two peak lines, too few clusters for their residuals to measure the noise (seed 11: truths at
             # 2-4 σ). The second takes the meat from residuals drawn from a noise model fitted to the window.
             # Plain Gauss-Newton, one variance for all lines, held only 39-60 % of the truths within ± 2 σ.
-            JJ, per = win.scores(lam, part, pivot, _noise_draws(win, res))
+            JJ, per = win.scores(lam, part, pivot, noise_draws(win, res))
             per_line, drawn = per[0], per[1:]
             bread = np.linalg.inv(JJ)
             meat = per_line.T @ per_line * win.Y.size / max(win.Y.size - n_par, 1)
@@ -441,46 +442,23 @@ def _result(win, window, f, zeta, part, pivot, n_start) -> FamilyFit:
                      frequency_std_hz=f_std[order], damping_std=z_std[order], n_start=n_start)
 
 
-def noise_model(P: np.ndarray, M: np.ndarray, axis: int) -> tuple[np.ndarray, float]:
-    """The two-part FRF noise model from residual powers ``P`` and model powers ``M`` (same shape).
-
-    Returns the additive floor per FRF, ``median |R|² / ln 2`` along the lines' ``axis`` (kept, so it broadcasts;
-    the median of a complex Gaussian's power is ln 2 times its variance), and the share of the response,
-    ``median |R|² / |Ĥ|² / ln 2`` over the values at least :data:`STRONG` times the floor (0 if none).
-    """
-    floor = np.maximum(np.median(P, axis=axis, keepdims=True) / np.log(2), np.finfo(float).tiny)
-    strong = M >= STRONG * floor
-    share = float(np.median(P[strong] / M[strong]) / np.log(2)) if strong.any() else 0.0
-    return floor, share
-
-
-def _noise_draws(win: FamilyWindow, res: np.ndarray) -> np.ndarray:
-    """Residuals drawn from the window's noise model, shape (N_DRAWS, rows, n_out), from a fixed seed.
-
-    The model of :func:`ema.unexplained.unexplained_lines`, fitted to the window's own residual ``res`` (rows,
-    n_out; from :meth:`FamilyWindow.solve`): an additive floor per FRF (the median residual power) and a share of
-    the fitted response (from the strong values).
-    """
-    shape = (2, win.n_in, win.n_lines, win.n_out)
-    r, fitted = res.reshape(shape), (win.Y - res).reshape(shape)
-    P = r[0] ** 2 + r[1] ** 2
-    M = fitted[0] ** 2 + fitted[1] ** 2
-    floor, share = noise_model(P, M, axis=1)
-    sd = np.sqrt((floor + share * M) / 2)[None]                       # each of the real and imaginary parts
-    rng = np.random.default_rng(0)
-    return (sd * rng.standard_normal((N_DRAWS, *shape))).reshape(N_DRAWS, -1, win.n_out)
-
-
 def family_windows(poles: np.ndarray, frf: FRFSet, band: tuple[float, float]) -> list[tuple[tuple, tuple]]:
-    """Windows of the structured fit: each mode's local window (:func:`ema.lsfd.local_windows`' rule),
-    overlapping ones merged, clipped to ``band``.
+    """Windows of the structured fit: each mode's local window (:func:`ema.lsfd.local_windows`' rule, with its
+    damping ratio at most :func:`damping_outlier_bound` of the poles'), overlapping ones merged, clipped to ``band``.
+
+    Why the bound: a window's width follows its poles' damping, and one pole far more damped than the rest
+    stretched its family's window over hundreds of hertz, where the residual terms cannot stand for the modes
+    outside and the refinement sent every pole to the damping bound (bundled test: a pole at 1093 Hz, ζ 2.5 %,
+    made the second blade family's window 824-1313 Hz; one at 478 Hz, ζ 2.6 %, a 353-676 Hz window that lost
+    every mode). Such a pole still starts the fit of the window it falls in.
 
     Returns
     -------
     list of (window, core), each (f_lo, f_hi) in Hz
         ``core``: the span of the window's modes widened by half the margin, where growth may add modes.
     """
-    f, half, _ = half_widths(poles, frf, band)
+    fn, zeta = modal_from_pole(np.asarray(poles, np.complex128).reshape(-1))
+    f, half, _ = half_widths(pole_from_modal(fn, np.minimum(zeta, damping_outlier_bound(zeta))), frf, band)
     if f.size == 0:
         return []
     spans = sorted(zip(f - half, f + half, f, half, strict=True))
@@ -498,3 +476,12 @@ def family_windows(poles: np.ndarray, frf: FRFSet, band: tuple[float, float]) ->
         out.append((window, core))
     return out
 
+
+def damping_outlier_bound(zeta: np.ndarray) -> float:
+    """The largest damping ratio that is not an outlier among ``zeta``: median + 3 × 1.4826 MAD (Hampel's rule;
+    the MAD scaled to a normal σ); infinite for fewer than three poles, where no spread can be measured."""
+    zeta = np.asarray(zeta, float)
+    if zeta.size < 3:
+        return float("inf")
+    med = float(np.median(zeta))
+    return med + 3 * 1.4826 * float(np.median(np.abs(zeta - med)))

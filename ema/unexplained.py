@@ -1,7 +1,7 @@
 """Modes a model misses, found where the residual stands above the noise, and fitted by a grown structured window.
 
 :func:`unexplained_lines` scales the residual of every FRF by a two-part noise model
-(:func:`ema.family.noise_model`) and sets a threshold that noise alone exceeds with probability
+(:func:`ema.fit_noise.noise_model`) and sets a threshold that noise alone exceeds with probability
 :data:`FALSE_ALARM`; :func:`fill_unexplained` opens a window at the line highest above it, grows a structured fit
 there (:func:`ema.family.fit_family`) and merges it in (:func:`ema.families.merge_families`), until no line stands
 above the threshold.
@@ -16,7 +16,8 @@ from dataclasses import replace
 import numpy as np
 
 from .families import merge_families
-from .family import fit_family, noise_model
+from .family import fit_family
+from .fit_noise import noise_model
 from .frf import FRFSet
 from .lsfd import half_widths, synthesize
 from .modal import ModalModel, modal_from_pole, pole_from_modal
@@ -37,9 +38,10 @@ def unexplained_lines(frf: FRFSet, model: ModalModel, band: tuple[float, float]
     The residual ``R = H − Ĥ`` of every FRF is scaled by a noise model with the two kinds of FRF noise: an
     additive floor per FRF, ``σ²_oi = median_f |R_oi|² / ln 2`` (the median of a complex Gaussian's power),
     and a share of the response, ``s² = median |R|² / |Ĥ|² / ln 2`` over the strong values (|Ĥ|² ≥
-    :data:`ema.family.STRONG` σ²_oi). Under that model ``z = |R|² / (σ²_oi + s² |Ĥ_oi|²)`` is exponential with mean 1 in
-    every FRF, so the largest of ``n_frf × n_lines`` values stays below ``ln(n_frf n_lines / FALSE_ALARM)``
-    with probability ``1 − FALSE_ALARM``. Why the largest over the FRFs, not their sum: a mode seen by a few
+    :data:`ema.fit_noise.STRONG` σ²_oi). Under that model ``z = |R|² / (σ²_oi + s² |Ĥ_oi|²)`` is exponential
+    with mean 1 in every FRF, so the largest of ``n_frf × n_lines`` values stays below
+    ``ln(n_frf n_lines / FALSE_ALARM)`` with probability ``1 − FALSE_ALARM``.
+    Why the largest over the FRFs, not their sum: a mode seen by a few
     response points only (a disk mode at blade tips) stands far above the floor in those FRFs and vanishes
     in a sum over all of them (on the bundled full-assembly test the sum missed four disk modes that the
     largest shows at 10⁴ times the floor).

@@ -137,7 +137,11 @@ class _PardisoFactor:
 
 class _SuperLUFactor:
     def __init__(self, A: sp.spmatrix):
-        self._lu = sla.splu(sp.csc_matrix(A), permc_spec="MMD_AT_PLUS_A")
+        # A is symmetric positive definite (factorize's contract): symmetric mode keeps the minimum-degree
+        # ordering of A + Aᵀ on the diagonal, and no pivoting is needed. Partial pivoting broke that ordering
+        # and tripled the fill (6-blade coarse assembly, 25 866 DOF: 33.3 → 10.8 M entries, 4.4 → 1.2 s).
+        self._lu = sla.splu(sp.csc_matrix(A), permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
+                            options={"SymmetricMode": True})
 
     def solve(self, b: np.ndarray) -> np.ndarray:
         return self._lu.solve(np.asarray(b, dtype=np.float64))

@@ -191,3 +191,25 @@ def test_a_window_that_grew_nothing_adds_no_mode_that_answers_for_none(family, f
     # grown, the same mode is new
     grown = merge_families(frf, model, [replace(moved, n_start=0)])
     assert grown.n_modes == model.n_modes + 1 and np.min(np.abs(grown.frequencies_hz - 600.0)) < 1e-6
+
+
+def test_a_heavily_damped_pole_does_not_stretch_its_family_s_window():
+    """Windows follow their poles' damping; one pole at 5 % among poles at 0.1-0.3 % would span ± 10 ζ f = ± 270 Hz
+    around 540 Hz, over the family at 500 Hz and the mode at 590 Hz. Capped at the poles' outlier bound
+    (Hampel's rule, computed here by hand), it spans what the others' damping gives and merges with none."""
+    from ema.family import damping_outlier_bound, family_windows
+    from ema.lsfd import LOCAL_HALF_WIDTHS
+
+    fn, zeta, phi = _truth()
+    frf = _frfs(fn, zeta, phi)
+    f = np.r_[fn, 540.0]
+    z = np.r_[zeta, 0.05]
+    med = np.median(z)
+    bound = med + 3 * 1.4826 * np.median(np.abs(z - med))
+    assert damping_outlier_bound(z) == pytest.approx(bound, rel=1e-12) and bound < 0.01
+    windows = [w for w, _ in family_windows(pole_from_modal(f, z), frf, (380.0, 640.0))]
+    own = next(w for w in windows if w[0] <= 540.0 <= w[1])
+    assert own == pytest.approx((540.0 - LOCAL_HALF_WIDTHS * bound * 540.0, 540.0 + LOCAL_HALF_WIDTHS * bound * 540.0))
+    assert not own[0] <= fn[1] <= own[1] and not own[0] <= 590.0 <= own[1]
+    # fewer than three poles measure no spread: no bound
+    assert damping_outlier_bound(np.array([0.001, 0.05])) == np.inf
