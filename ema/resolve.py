@@ -4,9 +4,10 @@ A single-reference LSCF fit with few outputs returns one pole for two modes 0.3 
 about 200 (a blade-like hammer test, tests/ema/test_close_pairs.py): its common denominator, fitted to a short arc
 of the unit circle, prefers the compromise. The complex, reweighted LSRF of :func:`ema.lsrf.lsrf` separates them
 at low orders on a narrow band. :func:`split_merged` therefore refits the window of every mode the fit kept
-(:func:`ema.family.family_windows`: each mode's local window, overlapping ones merged) with that estimator at
-orders ``1 .. LOCAL_ORDER`` and selects its stable modes; where that local selection holds more modes of quality
-at least :data:`SPLIT_QUALITY` in the window's core than the fit, the window's modes are replaced by them. The
+(:func:`ema.family.family_windows`: each mode's local window, its damping at most the test's outlier bound,
+overlapping ones merged) with that estimator at orders ``1 .. LOCAL_ORDER`` and selects its stable modes; where
+that local selection holds more modes of quality at least :data:`SPLIT_QUALITY` in the window's core than the fit,
+the window's modes are replaced by them. The
 caller then refits and refines the whole model and judges every mode by its dominance as before, so a local pole
 that only patches a neighbour is dropped there.
 

@@ -171,12 +171,12 @@ def campaign_sources(campaign, model: Source, store, opts: RunOptions, nominal: 
 def _ema_nodes(p: Pipeline, campaign) -> None:
     for t in campaign.tests:
         name = names.test_name(t)
-        # the assembly's fit, version 3: dense families resolved (ema.fit(families=True)), missed ones filled in;
-        # every test, +1: local shapes less the far modes where that fits better (ema.lsfd.local_residues); the
-        # assembly, 5: moved starting modes and off-line scan modes refused; 6: held at the damping bound (projected
-        # LM); 7: a variance ≤ 0 is NaN; 8: every window refined last; 9, 10: the damping outlier bound (windows, scan)
+        # the assembly, 3: families resolved, missed ones filled in; every test +1: local shapes less the far modes
+        # (ema.lsfd.local_residues), and windows at the damping outlier bound (the local LSRF check's too: 3, 9); the
+        # assembly, 5: moved starting and off-line scan modes refused; 6: held at the damping bound (projected LM);
+        # 7: a variance ≤ 0 is NaN; 8: every window refined last; 10: the scan's modes at the outlier bound too
         p.add(Node(names.ema(name), measured.fit_test, {"test": names.test_source(name)}, label=f"EMA {name}",
-                   version=10 if t.type == "assembly" else 2))
+                   version=10 if t.type == "assembly" else 3))
     p.add(Node(names.BLADE_TABLE, measured.blade_table, _ema_of(campaign, "blade"), where="parent"))
 
 
