@@ -71,12 +71,16 @@ def _write_part(folder: Path, r: PairResult, key: str) -> None:
         pq.write_table(table, tmp)
 
 
-def _read_part(path: Path, key: str, plan: DatasetPlan) -> PairResult:
+def _read_part(path: Path, key: str, plan: DatasetPlan) -> PairResult | None:
+    """The part at ``path``; None where it is gone (a concurrent build of the same dataset finished and cleared
+    the folder after this one listed it: two campaigns of one disk, their dataset nodes on two workers)."""
     import pyarrow.parquet as pq
 
     try:
         table = pq.read_table(path)
         meta = json.loads(table.schema.metadata[b"bladetwin.part"])
+    except FileNotFoundError:
+        return None
     except Exception as exc:  # noqa: BLE001 - any unreadable part is reported the same way
         raise IdentifyError(f"{path}: not a readable dataset part ({exc}); delete it and re-run") from None
     if meta.get("key") != key:
@@ -152,8 +156,8 @@ def build_dataset_parts(
     results = {}
     for i, j in plan.pairs:
         p = _part_path(folder, i, j)
-        if p.is_file():
-            results[i, j] = _read_part(p, key, plan)
+        if p.is_file() and (part := _read_part(p, key, plan)) is not None:
+            results[i, j] = part
     todo = [pair for pair in plan.pairs if pair not in results]
     say(f"dataset: {len(plan.pairs)} pattern pairs × {plan.n_rows} δ rows; {len(results)} pairs already in "
         f"{folder}, {len(todo)} to compute")

@@ -108,3 +108,24 @@ def test_a_build_killed_mid_way_resumes_without_recomputing_finished_parts(seria
     _same(ds, serial)
     # the finished parts were read, not recomputed
     assert all(folder.joinpath(n).stat().st_mtime_ns == t for n, t in finished.items())
+
+
+def test_parts_cleared_by_a_concurrent_build_are_computed_again(serial, tmp_path, monkeypatch):
+    """Two campaigns of one disk share a dataset's parts folder; the build that finishes first clears it. A part
+    that vanishes between this build's listing and its reading is computed again, not reported as damaged."""
+    import pyarrow.parquet as pq
+
+    PL, PR = patterns()
+    folder = tmp_path / "shared"
+    build_dataset_parts(disk_cb(), blade(), PL, PR, DELTA_GRID, folder)   # every part on disk
+    real = pq.read_table
+
+    def cleared_first(path, *args, **kwargs):     # the other build's rmtree lands after the listing
+        Path(path).unlink(missing_ok=True)
+        return real(path, *args, **kwargs)
+
+    monkeypatch.setattr(pq, "read_table", cleared_first)
+    said = []
+    ds = build_dataset_parts(disk_cb(), blade(), PL, PR, DELTA_GRID, folder, say=said.append)
+    assert f"0 pairs already in {folder}, {N_SIDE**2} to compute" in said[0]
+    _same(ds, serial)
