@@ -1,7 +1,9 @@
 """``bladetwin`` command line: one sub-command group per stage (docs/design.md §7).
 
 Each group lives in its own ``bladetwin.cli_<group>`` module exposing ``register(subparsers)``; this
-module only wires them together, so stages can grow without touching each other.
+module only wires them together, so stages can grow without touching each other. :func:`main` imports only the
+module of the command it runs (the others are listed from :data:`bladetwin.cli_commands.COMMANDS`): their
+numerics would take 4-6 s to import, before ``bladetwin --help`` or ``bladetwin lab simulate`` could answer.
 """
 
 from __future__ import annotations
@@ -11,17 +13,23 @@ import importlib
 import logging
 import sys
 import zipfile
+from collections.abc import Sequence
 
+from .cli_commands import COMMANDS
 from .user_warnings import install as install_warnings
 
 __all__ = ["main", "build_parser", "error_message"]
 
-# Sub-command modules, in help order. Each must define ``register(subparsers) -> None``.
-_COMMAND_MODULES = ("cli_run", "cli_report", "cli_response", "cli_fe", "cli_ema", "cli_rom", "cli_lab", "cli_identify",
-                    "cli_campaign")
 
+def build_parser(argv: Sequence[str] | None = None) -> argparse.ArgumentParser:
+    """The command line's parser.
 
-def build_parser() -> argparse.ArgumentParser:
+    Parameters
+    ----------
+    argv : sequence of str, optional
+        The arguments it will parse. Given, only the command they name gets its options (its module imported);
+        every other command is listed with its one-line help and no options. Default: every command in full.
+    """
     parser = argparse.ArgumentParser(
         prog="bladetwin",
         description="Contact-mistuning identification in bladed disks (EMA front end, ROM back end).",
@@ -29,13 +37,23 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("-v", "--verbose", action="store_true", help="log progress details")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     sub.required = True
-    for name in _COMMAND_MODULES:
-        importlib.import_module(f"bladetwin.{name}").register(sub)
+    wanted = None if argv is None else _command_named(argv)
+    for name, (module, help_line) in COMMANDS.items():
+        if argv is None or name == wanted:
+            importlib.import_module(f"bladetwin.{module}").register(sub)
+        else:
+            sub.add_parser(name, help=help_line)
     return parser
 
 
+def _command_named(argv: Sequence[str]) -> str | None:
+    """The command ``argv`` runs: its first word that is not an option (the top level's take no value)."""
+    return next((a for a in argv if not a.startswith("-")), None)
+
+
 def main(argv: list[str] | None = None) -> int:
-    parser = build_parser()
+    argv = sys.argv[1:] if argv is None else argv
+    parser = build_parser(argv)
     args = parser.parse_args(argv)
     logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING, format="%(levelname)s %(message)s")
     install_warnings()  # every warning a command does not record itself: one line on stderr, no source line

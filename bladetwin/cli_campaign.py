@@ -5,6 +5,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from .cli_commands import command_help
+
 __all__ = ["register"]
 
 _DESCRIPTION = (
@@ -21,7 +23,7 @@ _DESCRIPTION = (
 
 
 def register(sub) -> None:
-    camp = sub.add_parser("campaign", help="campaign manifests: draft campaign.toml from a folder of exports",
+    camp = sub.add_parser("campaign", help=command_help("campaign"),
                           description="Campaign manifests (docs/campaign.md).")
     csub = camp.add_subparsers(dest="campaign_command", metavar="SUBCOMMAND")
     csub.required = True

@@ -9,6 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .cli_commands import command_help
 from .util import atomic_savefig
 
 __all__ = ["register"]
@@ -206,7 +207,7 @@ def _cmd_assembly(args: argparse.Namespace) -> int:
 
 def register(subparsers) -> None:
     """Add the ``ema`` command group to the ``bladetwin`` parser."""
-    ema = subparsers.add_parser("ema", help="experimental modal analysis: fit UFF FRFs, campaign tables")
+    ema = subparsers.add_parser("ema", help=command_help("ema"))
     sub = ema.add_subparsers(dest="ema_command", metavar="SUBCOMMAND")
     sub.required = True
 

@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .cli_commands import command_help
 from .cli_fe_import import add_import_args, cmd_info_import, import_from_args, import_info, import_modes, uses_import
 from .util import atomic_savefig, atomic_write_text, format_table, print_json, step
 
@@ -30,9 +31,9 @@ def add_model_args(p: argparse.ArgumentParser) -> None:
 
 
 def register(sub) -> None:
-    fe = sub.add_parser("fe", help="FE models: the academic twin or an imported component; info, modes, plot, "
-                                   "export", description="Inspect the embedded academic bladed-disk FE model or "
-                                   "an imported FE component; export the twin in the importable formats.")
+    fe = sub.add_parser("fe", help=command_help("fe"),
+                        description="Inspect the embedded academic bladed-disk FE model or an imported FE component; "
+                                    "export the twin in the importable formats.")
     fsub = fe.add_subparsers(dest="fe_command", metavar="SUBCOMMAND")
     fsub.required = True
 

@@ -20,6 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .cli_commands import command_help
 from .cli_options import add_stage_options, stage_options
 from .stages import names
 from .util import atomic_savefig, atomic_write_text, format_table, print_json
@@ -30,10 +31,10 @@ DEFAULT_CAMPAIGN = "measurements/academic"
 
 
 def register(sub) -> None:
-    grp = sub.add_parser("identify", help="contact-pattern identification: patterns, sensitivity, dataset, predict, "
-                         "validate", description="Identification stages on a campaign folder (docs/identify.md). "
-                         "Each runs the nodes of `bladetwin run` it needs, from the same store: after a run with "
-                         "the same settings, nothing is recomputed.")
+    grp = sub.add_parser("identify", help=command_help("identify"),
+                         description="Identification stages on a campaign folder (docs/identify.md). Each runs the "
+                                     "nodes of `bladetwin run` it needs, from the same store: after a run with the "
+                                     "same settings, nothing is recomputed.")
     isub = grp.add_subparsers(dest="identify_command", metavar="SUBCOMMAND")
     isub.required = True
 

@@ -9,6 +9,7 @@ import sys
 import time
 from typing import TYPE_CHECKING
 
+from .cli_commands import command_help
 from .util import print_json
 
 if TYPE_CHECKING:
@@ -18,7 +19,7 @@ __all__ = ["register", "parse_known", "parse_coherence", "spec_from_args", "spec
 
 
 def register(sub) -> None:
-    lab = sub.add_parser("lab", help="virtual test rig: simulate a measurement campaign on a truth twin",
+    lab = sub.add_parser("lab", help=command_help("lab"),
                          description="Simulate hammer tests and film scans on a truth twin of the academic bladed "
                                      "disk (docs/campaign.md).")
     lsub = lab.add_subparsers(dest="lab_command", metavar="SUBCOMMAND")

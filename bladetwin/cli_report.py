@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 
+from .cli_commands import command_help
 from .report import render_report
 
 __all__ = ["register"]
@@ -12,7 +13,7 @@ __all__ = ["register"]
 def register(sub) -> None:
     p = sub.add_parser(
         "report",
-        help="re-render the HTML report from the outputs of `bladetwin run` without recomputing",
+        help=command_help("report"),
         description="Re-render the HTML report from the outputs of `bladetwin run` without recomputing: reads "
                     "OUT_DIR/summary.json and the figures and tables it names, and writes one self-contained "
                     "page (images embedded, no JavaScript, no network).",

@@ -11,6 +11,7 @@ import argparse
 import json
 from pathlib import Path
 
+from .cli_commands import command_help
 from .output_files import save_figure, write_csv
 from .outputs_response import RESPONSE_HEADER, plot_response, response_rows
 from .stages import names
@@ -20,7 +21,7 @@ __all__ = ["register", "read_response", "parse_choice"]
 
 def register(sub) -> None:
     p = sub.add_parser(
-        "response", help="amplification factor per engine order and family of a finished run (CSV, PNG)",
+        "response", help=command_help("response"),
         description="The mistuning amplification factor per family and engine order of a finished `bladetwin run`, "
                     "for its exported ROM and the paper's: reads OUT_DIR/summary.json, recomputes nothing, writes "
                     "OUT_DIR/response.csv and OUT_DIR/response.png.")

@@ -16,6 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .cli_commands import command_help
 from .cli_fe import add_model_args, build_model, parse_grid
 from .util import format_table, print_json, step
 
@@ -36,7 +37,7 @@ def _common(p: argparse.ArgumentParser) -> None:
 
 
 def register(sub) -> None:
-    rom = sub.add_parser("rom", help="reduced-order models: build, modes, validate",
+    rom = sub.add_parser("rom", help=command_help("rom"),
                          description="Craig–Bampton disk + Rubin blade ROMs of the academic bladed disk.")
     rsub = rom.add_subparsers(dest="rom_command", metavar="SUBCOMMAND")
     rsub.required = True

@@ -14,6 +14,7 @@ import sys
 import time
 from pathlib import Path
 
+from .cli_commands import command_help
 from .cli_options import add_stage_options, stage_options
 from .util import format_table, print_json
 
@@ -23,7 +24,7 @@ DEFAULT_CAMPAIGN = "measurements/academic"
 
 
 def register(sub) -> None:
-    p = sub.add_parser("run", help="the main job: identify every joint's contact pattern on a campaign, with a report",
+    p = sub.add_parser("run", help=command_help("run"),
                        description="Identify the contact pattern of every blade-root joint of a campaign folder "
                                    "(UFF tests + a few film scans), build the mistuned ROM, validate it (paper "
                                    "Table 8) and write an HTML report. Default: the bundled academic campaign.")

@@ -39,3 +39,26 @@ def test_every_name_in_all_resolves(name):
     mod = importlib.import_module(name)
     missing = [n for n in mod.__all__ if not hasattr(mod, n)]
     assert not missing, f"{name}.__all__ names what it does not have: {missing}"
+
+
+def test_help_lists_every_command_without_importing_the_numerics():
+    """``bladetwin --help`` lists each command's line (the same as its full parser's) and imports no stage."""
+    import subprocess
+    import sys
+
+    code = ("import sys; from bladetwin.cli import build_parser; build_parser(['--help']); "
+            "print(sorted(m for m in ('numpy', 'scipy', 'matplotlib', 'identify', 'rom', 'ema', 'lab') "
+            "if m in sys.modules))")
+    run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120, cwd=REPO)
+    assert run.returncode == 0 and run.stdout.strip() == "[]", (run.stdout, run.stderr)
+    from bladetwin.cli import build_parser
+    from bladetwin.cli_commands import COMMANDS
+
+    def helps(parser):
+        sub = next(a for a in parser._actions if a.dest == "command")
+        return {c.dest: c.help for c in sub._choices_actions}
+
+    assert helps(build_parser()) == helps(build_parser(["--help"])) == {k: v[1] for k, v in COMMANDS.items()}
+    full = build_parser().parse_args(["lab", "simulate", "--blades", "4"])
+    lazy = build_parser(["lab", "simulate", "--blades", "4"]).parse_args(["lab", "simulate", "--blades", "4"])
+    assert vars(full) == vars(lazy)  # the command run gets every option it has in the full parser
