@@ -174,9 +174,9 @@ def _ema_nodes(p: Pipeline, campaign) -> None:
         # the assembly, 3: families resolved, missed ones filled in; every test +1: local shapes less the far modes
         # (ema.lsfd.local_residues), and windows at the damping outlier bound (the local LSRF check's too: 3, 9); the
         # assembly, 5: moved starting and off-line scan modes refused; 6: held at the damping bound (projected LM);
-        # 7: a variance ≤ 0 is NaN; 8: every window refined last; 10: the scan's modes at the outlier bound too
+        # 7: a variance ≤ 0 is NaN; 8: every window refined last; 10: the scan at the outlier bound; 11: σ > window
         p.add(Node(names.ema(name), measured.fit_test, {"test": names.test_source(name)}, label=f"EMA {name}",
-                   version=10 if t.type == "assembly" else 3))
+                   version=11 if t.type == "assembly" else 3))
     p.add(Node(names.BLADE_TABLE, measured.blade_table, _ema_of(campaign, "blade"), where="parent"))
 
 
