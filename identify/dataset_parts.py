@@ -72,8 +72,8 @@ def _write_part(folder: Path, r: PairResult, key: str) -> None:
 
 
 def _read_part(path: Path, key: str, plan: DatasetPlan) -> PairResult | None:
-    """The part at ``path``; None where it is gone (a concurrent build of the same dataset finished and cleared
-    the folder after this one listed it: two campaigns of one disk, their dataset nodes on two workers)."""
+    """The part at ``path``; None where there is none: not yet written, or gone (a concurrent build of the same
+    dataset finished and cleared the folder: two campaigns of one disk, their dataset nodes on two workers)."""
     import pyarrow.parquet as pq
 
     try:
@@ -156,7 +156,7 @@ def build_dataset_parts(
     results = {}
     for i, j in plan.pairs:
         p = _part_path(folder, i, j)
-        if p.is_file() and (part := _read_part(p, key, plan)) is not None:
+        if (part := _read_part(p, key, plan)) is not None:  # None: not written, or cleared by a concurrent build
             results[i, j] = part
     todo = [pair for pair in plan.pairs if pair not in results]
     say(f"dataset: {len(plan.pairs)} pattern pairs × {plan.n_rows} δ rows; {len(results)} pairs already in "
