@@ -17,7 +17,7 @@ run: $(STAMP)
 
 # One worker per core, whole files per worker (module fixtures build their campaign once): design §8.32.
 test: $(STAMP)
-	$(BIN)/python -m pytest -q -n auto --dist loadfile
+	$(BIN)/python -m pytest -q -n auto --dist loadfile --no-loadscope-reorder
 
 lint: $(STAMP)
 	$(BIN)/ruff check .
