@@ -15,13 +15,16 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+from scipy.special import erf
 
+from ema.fit_noise import noise_model
 from ema.frf import FRF_FORMS, FRFSet
 from ema.mac import mac_paired, pair_by_frequency
 from ema.modal import ModalModel
 from lab.rig import RigSetup
 
-__all__ = ["AssemblyTruth", "load_assembly_truth", "assembly_scores", "shape_mac_bound", "ONE_TO_ONE_RTOL"]
+__all__ = ["AssemblyTruth", "load_assembly_truth", "assembly_scores", "shape_mac_bound", "frequency_bound",
+           "coverage_bound", "ONE_TO_ONE_RTOL"]
 
 #: Relative frequency window of a one-to-one pair (issue 31: 0.05 %), and of a mode "near" a true one (1 %).
 ONE_TO_ONE_RTOL, FAR_RTOL = 5e-4, 0.01
@@ -168,13 +171,7 @@ def shape_mac_bound(truth: AssemblyTruth, frf: FRFSet, multiplicative: float = R
     """
     if truth.shapes is None or truth.damping_ratio is None:
         raise ValueError("shape_mac_bound: the truth has no shapes or damping ratios")
-    index = {dof: k for k, dof in enumerate(truth.outputs)}
-    missing = [d for d in (*frf.outputs, *frf.inputs) if tuple(d) not in index]
-    if missing:
-        raise ValueError(f"shape_mac_bound: DOFs {missing[:3]} of the test are not among the truth's outputs")
-    phi_o = truth.shapes[[index[tuple(d)] for d in frf.outputs]]           # (n_out, n_visible)
-    phi_i = truth.shapes[[index[tuple(d)] for d in frf.inputs]]            # (n_in, n_visible)
-    lines = frf.valid_lines() & (frf.freq_hz > 0)
+    phi_o, phi_i, lines = _test_shapes(truth, frf, "shape_mac_bound")   # (n_out | n_in, n_visible)
     H = frf.H[:, :, lines]
     rms = np.sqrt(np.mean(np.abs(H) ** 2, axis=2, keepdims=True))
     v = np.maximum((additive * rms) ** 2 + (multiplicative * np.abs(H)) ** 2, np.finfo(float).tiny)
@@ -196,3 +193,109 @@ def shape_mac_bound(truth: AssemblyTruth, frf: FRFSet, multiplicative: float = R
         den = np.sum(np.abs(est) ** 2, axis=1) * np.sum(phi_o[:, c] ** 2)
         out[c] = float(np.mean(np.where(den > 0, num / np.where(den > 0, den, 1.0), 0.0)))
     return out
+
+
+def frequency_bound(truth: AssemblyTruth, frf: FRFSet, multiplicative: float | None = None,
+                    additive: float | None = None, span: float = 40.0) -> np.ndarray:
+    """The Cramér–Rao bound of each visible mode's natural frequency: the smallest standard deviation (Hz) that an
+    unbiased estimate from this test can have.
+
+    The model is the truth's visible modes, ``H_oi = Σ_r φ_or φ_ir g_r(ω)`` with ``g_r`` as in
+    :func:`shape_mac_bound`; its unknowns are each mode's ω_r, ζ_r and shape at every output, the references'
+    entries taken as known (so the bound is, if anything, optimistic). The noise is circular complex Gaussian with
+    variance ``v_oi(ω) = (additive · RMS_oi)² + (multiplicative · |H_oi|)²`` where both shares are given (the
+    virtual rig's frequency-domain model, :func:`lab.rig.measure`), else the two-part model that
+    :func:`ema.fit_noise.noise_model` fits to the residual of the truth's modes (what a time-domain hammer test
+    really adds, plus the modes the truth leaves out). Modes are bounded cluster by cluster: a gap of more than
+    ``span`` half-power bandwidths splits them, and each cluster takes the lines within ``span`` bandwidths of it.
+    The frequency's variance is the diagonal of the inverse of the Fisher information of (ω, ζ) after the shapes
+    are eliminated (its Schur complement), output by output.
+
+    Returns
+    -------
+    ndarray of float64, shape (n_visible,)
+        Hz; infinite for a mode that no reference excites.
+    """
+    if truth.shapes is None or truth.damping_ratio is None:
+        raise ValueError("frequency_bound: the truth has no shapes or damping ratios")
+    phi_o, phi_i, lines = _test_shapes(truth, frf, "frequency_bound")
+    H = frf.H[:, :, lines]
+    w = 2 * np.pi * frf.freq_hz[lines]
+    c = (1j * w) ** FRF_FORMS[frf.form]
+    f, zeta = truth.frequencies_hz, truth.damping_ratio
+    wr = 2 * np.pi * f
+    model = np.einsum("or,ir,rl->oil", phi_o, phi_i, c / (wr[:, None] ** 2 - w**2 + 2j * (zeta * wr)[:, None] * w))
+    if multiplicative is not None and additive is not None:
+        rms = np.sqrt(np.mean(np.abs(H) ** 2, axis=2, keepdims=True))
+        v = (additive * rms) ** 2 + (multiplicative * np.abs(H)) ** 2
+    else:
+        floor, share = noise_model(np.abs(H - model) ** 2, np.abs(model) ** 2, axis=2)
+        v = floor + share * np.abs(model) ** 2
+    weight = 2.0 / np.maximum(v, np.finfo(float).tiny)       # Fisher: 2 Re(∂Hᴴ ∂H) / v per complex value
+    sd = np.full(f.size, np.inf)
+    for group in _clusters(f, zeta, span):
+        reach = span * float(np.max(zeta[group] * f[group]))
+        near = (w >= 2 * np.pi * (f[group].min() - reach)) & (w <= 2 * np.pi * (f[group].max() + reach))
+        sd[group] = _cluster_bound(wr[group], zeta[group], w[near], c[near], phi_o[:, group], phi_i[:, group],
+                                   weight[:, :, near])
+    return sd
+
+
+def coverage_bound(truth: AssemblyTruth, sd_hz: np.ndarray) -> float:
+    """The share of the visible modes that an efficient estimate with standard deviations ``sd_hz``
+    (:func:`frequency_bound`) puts within :data:`ONE_TO_ONE_RTOL` of the truth, on average: the ceiling of
+    :func:`assembly_scores`' ``one_to_one_within_0p05pct`` that the test's information sets."""
+    tol = ONE_TO_ONE_RTOL * truth.frequencies_hz
+    with np.errstate(divide="ignore"):
+        z = np.where(np.isfinite(sd_hz) & (sd_hz > 0), tol / (np.sqrt(2) * sd_hz), 0.0)
+    return float(np.mean(erf(z))) if z.size else float("nan")
+
+
+def _test_shapes(truth: AssemblyTruth, frf: FRFSet, who: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The truth's shapes at the test's outputs and references, and the test's usable lines (a boolean mask)."""
+    index = {dof: k for k, dof in enumerate(truth.outputs)}
+    missing = [d for d in (*frf.outputs, *frf.inputs) if tuple(d) not in index]
+    if missing:
+        raise ValueError(f"{who}: DOFs {missing[:3]} of the test are not among the truth's outputs")
+    phi_o = truth.shapes[[index[tuple(d)] for d in frf.outputs]]
+    phi_i = truth.shapes[[index[tuple(d)] for d in frf.inputs]]
+    return phi_o, phi_i, frf.valid_lines() & (frf.freq_hz > 0)
+
+
+def _clusters(f: np.ndarray, zeta: np.ndarray, span: float) -> list[np.ndarray]:
+    """Indices of the modes in groups, split where the gap exceeds ``span`` half-power bandwidths of either side."""
+    order = np.argsort(f)
+    groups = [[order[0]]] if f.size else []
+    for a, b in zip(order[:-1], order[1:], strict=True):
+        if f[b] - f[a] > span * max(zeta[a] * f[a], zeta[b] * f[b]):
+            groups.append([b])
+        else:
+            groups[-1].append(b)
+    return [np.array(g) for g in groups]
+
+
+def _cluster_bound(wr, zeta, w, c, phi_o, phi_i, weight) -> np.ndarray:
+    """Frequency bounds (Hz) of one cluster's K modes: Fisher information of (ω, ζ) and of each output's shape
+    entries, the shapes eliminated output by output (their blocks couple only through the poles)."""
+    K, (n_out, n_in) = wr.size, (phi_o.shape[0], phi_i.shape[0])
+    den = wr[:, None] ** 2 - w**2 + 2j * (zeta * wr)[:, None] * w
+    g = c / den                                                              # (K, L)
+    dg = np.vstack([-c * (2 * wr[:, None] + 2j * zeta[:, None] * w) / den**2,  # ∂g/∂ω_r
+                    -c * (2j * wr[:, None] * w) / den**2])                    # ∂g/∂ζ_r
+    poles = np.zeros((2 * K, 2 * K))
+    schur = np.zeros((2 * K, 2 * K))
+    for o in range(n_out):
+        cross, shapes = np.zeros((2 * K, K)), np.zeros((K, K))
+        for i in range(n_in):
+            a = np.tile(phi_o[o] * phi_i[i], 2)
+            wd = dg.conj() * weight[o, i]
+            poles += np.real(np.outer(a, a) * (wd @ dg.T))
+            cross += np.real(a[:, None] * (wd @ g.T) * phi_i[i][None, :])
+            shapes += np.real(np.outer(phi_i[i], phi_i[i]) * ((g.conj() * weight[o, i]) @ g.T))
+        schur += cross @ np.linalg.pinv(shapes, rcond=1e-12) @ cross.T
+    info = poles - schur
+    try:
+        var = np.diag(np.linalg.inv(info))[:K]
+    except np.linalg.LinAlgError:
+        return np.full(K, np.inf)
+    return np.where(var > 0, np.sqrt(np.abs(var)), np.inf) / (2 * np.pi)
