@@ -20,6 +20,17 @@ def _mobility(freq, fn, zeta, phi_o, phi_i):
     return np.einsum("or,ir,rf->oif", phi_o, phi_i, 1j * w / den)
 
 
+def _rig_test(fn, zeta, phi, refs, band, resolution):
+    """A test of the modes (fn, zeta, phi) with hammers at ``refs``: the rig's setup, its lines, the clean
+    mobilities (n_out, n_in, n_lines), their noise variance under the rig's two-part model, and the outputs."""
+    setup = RigSetup(band, resolution)
+    freq = setup.frequencies()
+    clean = _mobility(freq, fn, zeta, phi, phi[refs])
+    rms = np.sqrt(np.mean(np.abs(clean) ** 2, axis=2, keepdims=True))
+    v = (setup.additive_noise * rms) ** 2 + (setup.multiplicative_noise * np.abs(clean)) ** 2
+    return setup, freq, clean, v, [(k + 1, 3) for k in range(phi.shape[0])]
+
+
 def test_the_bound_is_the_mean_mac_of_the_weighted_least_squares_shape():
     # mode 0 (the one judged) is large at points 8-11 and smaller at points 0-7, where mode 1, far stronger,
     # sets the noise (a disk mode under a blade family's noise); the references are at points 0 and 1, where
@@ -32,12 +43,7 @@ def test_the_bound_is_the_mean_mac_of_the_weighted_least_squares_shape():
     phi[:8, 1] = rng.uniform(30.0, 60.0, 8)
     phi[8:, 1] = rng.uniform(0.2, 0.4, 4)
     refs = [0, 1]
-    setup = RigSetup((100.0, 400.0), 0.25)
-    freq = setup.frequencies()
-    clean = _mobility(freq, fn, zeta, phi, phi[refs])
-    rms = np.sqrt(np.mean(np.abs(clean) ** 2, axis=2, keepdims=True))
-    v = (setup.additive_noise * rms) ** 2 + (setup.multiplicative_noise * np.abs(clean)) ** 2
-    outputs = [(k + 1, 3) for k in range(12)]
+    setup, freq, clean, v, outputs = _rig_test(fn, zeta, phi, refs, (100.0, 400.0), 0.25)
     truth = AssemblyTruth(fn[:1], fn, phi[:, :1], np.ones(1), tuple(outputs), zeta[:1])
     bound = shape_mac_bound(truth, FRFSet(freq, clean, outputs, [outputs[k] for k in refs], form="mobility"),
                             setup.multiplicative_noise, setup.additive_noise, n_draws=400)[0]
@@ -85,12 +91,7 @@ def test_the_frequency_bound_is_the_scatter_of_the_maximum_likelihood_fit():
     fn, zeta = np.array([500.0, 500.6]), np.array([0.002, 0.002])
     phi = rng.uniform(0.5, 1.5, (6, 2)) * np.sign(rng.standard_normal((6, 2)))
     refs = [0, 4]
-    setup = RigSetup((490.0, 511.0), 0.1)
-    freq = setup.frequencies()
-    clean = _mobility(freq, fn, zeta, phi, phi[refs])
-    rms = np.sqrt(np.mean(np.abs(clean) ** 2, axis=2, keepdims=True))
-    v = (setup.additive_noise * rms) ** 2 + (setup.multiplicative_noise * np.abs(clean)) ** 2
-    outputs = [(k + 1, 3) for k in range(6)]
+    setup, freq, clean, v, outputs = _rig_test(fn, zeta, phi, refs, (490.0, 511.0), 0.1)
     truth = AssemblyTruth(fn, fn, phi, np.ones(2), tuple(outputs), zeta)
     frf = FRFSet(freq, clean, outputs, [outputs[k] for k in refs], form="mobility")
     bound = frequency_bound(truth, frf, setup.multiplicative_noise, setup.additive_noise)
