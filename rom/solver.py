@@ -12,6 +12,7 @@ free–free component whose ``K`` is singular, and rigid-body modes come out as 
 
 from __future__ import annotations
 
+import ctypes
 import logging
 import math
 import os
@@ -73,9 +74,12 @@ def _name_mkl_runtime() -> None:
         return
     for f in sorted((f for f in files if f.name.startswith("libmkl_rt")), key=lambda f: len(str(f))):
         path = Path(f.locate()).resolve()
-        if path.is_file():
-            os.environ["PYPARDISO_MKL_RT"] = str(path)
-            return
+        try:
+            ctypes.CDLL(str(path))   # pypardiso loads a named library unguarded: name only one that loads
+        except OSError:
+            continue
+        os.environ["PYPARDISO_MKL_RT"] = str(path)
+        return
 
 
 def available_backends() -> list[str]:

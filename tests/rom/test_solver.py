@@ -4,6 +4,9 @@ Issue 8 item 1: from an unlucky ARPACK start vector, the coarse disk–one-blade
 rigid-body eigenvalue (start vector ``default_rng(14)``, 3 elastic modes asked for, 5 rigid modes reported).
 """
 
+import os
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -187,3 +190,34 @@ def test_solve_modes_on_pardiso_takes_the_block_run_and_agrees_with_arpack(coars
     got = solve_modes(disk.K, disk.M, 12, backend="pardiso")
     assert got.n_rigid == ref.n_rigid == 6
     np.testing.assert_allclose(got.frequencies_hz, ref.frequencies_hz, rtol=1e-9)
+
+
+def test_mkl_runtime_is_named_from_its_package_record_and_only_if_it_loads(monkeypatch, tmp_path):
+    """pypardiso is told where MKL's runtime is (sparing its recursive glob over the environment) only when the
+    ``mkl`` package's record names a library that loads: pypardiso loads a named one without a guard."""
+    from importlib import metadata
+
+    from rom import solver
+
+    monkeypatch.delenv("PYPARDISO_MKL_RT", raising=False)
+    try:
+        record = [f for f in metadata.files("mkl") or [] if f.name.startswith("libmkl_rt")]
+    except metadata.PackageNotFoundError:
+        record = []
+    if record:
+        solver._name_mkl_runtime()
+        assert Path(os.environ["PYPARDISO_MKL_RT"]).is_file()
+        assert "pardiso" in solver.available_backends()
+    monkeypatch.delenv("PYPARDISO_MKL_RT", raising=False)
+    damaged = tmp_path / "libmkl_rt.so.9"
+    damaged.write_bytes(b"not a shared library")
+
+    class Entry:
+        name = damaged.name
+
+        def locate(self):
+            return damaged
+
+    monkeypatch.setattr(metadata, "files", lambda name: [Entry()])
+    solver._name_mkl_runtime()
+    assert "PYPARDISO_MKL_RT" not in os.environ
