@@ -12,6 +12,7 @@ from __future__ import annotations
 import csv
 import json
 import re
+import shutil
 from html.parser import HTMLParser
 from pathlib import Path
 
@@ -100,17 +101,22 @@ def _marked(page: _Tables, n_campaigns: int = 2) -> list[set[int]]:
 
 @pytest.fixture(scope="module")
 def reassembled(tmp_path_factory):
+    """The two campaigns run as a lab has them, without their truth (kept apart under ``simulated/``): the page
+    compares the runs' own answers, and a run without a truth skips the numerical-input posterior and the
+    validation solves, which this test does not look at."""
     root = tmp_path_factory.mktemp("reassembly")
-    simulate_campaign(CampaignSpec(name="before", **SMALL), root / "before")
+    simulate_campaign(CampaignSpec(name="before", **SMALL), root / "simulated" / "before")
     simulate_campaign(CampaignSpec(name="reseated", reseat=(RESEATED,), reseat_fraction=RESEAT_FRACTION, **SMALL),
-                      root / "reseated")
+                      root / "simulated" / "reseated")
+    for name in ("before", "reseated"):
+        shutil.copytree(root / "simulated" / name, root / name, ignore=shutil.ignore_patterns("truth"))
     assert main([*RUN, str(root / "before"), str(root / "reseated"), "--out", str(root / "run"),
                  "--cache-dir", str(root / "store")]) == 0
     return root
 
 
 def _truth(folder: Path) -> np.ndarray:
-    z = np.load(folder / "truth" / "patterns.npz")
+    z = np.load(folder.parent / "simulated" / folder.name / "truth" / "patterns.npz")
     return np.stack([z["L"], z["R"]], axis=1)
 
 
