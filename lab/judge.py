@@ -211,6 +211,17 @@ def frequency_bound(truth: AssemblyTruth, frf: FRFSet, multiplicative: float | N
     The frequency's variance is the diagonal of the inverse of the Fisher information of (ω, ζ) after the shapes
     are eliminated (its Schur complement), output by output.
 
+    Parameters
+    ----------
+    truth : AssemblyTruth
+        With shapes and damping ratios.
+    frf : FRFSet
+        The full-assembly test: its outputs and references must be among the truth's outputs.
+    multiplicative, additive : float, optional
+        The noise shares (:class:`lab.rig.RigSetup`); both or neither.
+    span : float
+        Half-power bandwidths that split two clusters and bound each cluster's lines.
+
     Returns
     -------
     ndarray of float64, shape (n_visible,)
