@@ -38,7 +38,7 @@ def _stabilization(name: str, test, fit, frf, out: Path) -> dict:
 
 def _families_figure(name: str, test, fit, frf, out: Path) -> list[dict]:
     """The zoom on a test's dense windows (four modes or more) after the family fit, beside its diagram."""
-    from ema.family import family_windows
+    from ema.family_windows import family_windows
     from ema.plots import plot_families
 
     f = fit.model.frequencies_hz

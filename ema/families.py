@@ -14,7 +14,8 @@ from dataclasses import replace
 
 import numpy as np
 
-from .family import FamilyFit, family_windows, fit_family
+from .family import FamilyFit, fit_family
+from .family_windows import family_windows
 from .frf import FRFSet
 from .lsfd import modal_model, shapes_from_residues
 from .modal import ModalModel, modal_from_pole

@@ -22,7 +22,7 @@ from __future__ import annotations
 import numpy as np
 
 from .errors import EMAError
-from .family import family_windows
+from .family_windows import family_windows
 from .frf import FRFSet
 from .lsrf import lsrf
 from .modal import modal_from_pole

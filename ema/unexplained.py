@@ -16,7 +16,8 @@ from dataclasses import replace
 import numpy as np
 
 from .families import merge_families
-from .family import damping_outlier_bound, fit_family
+from .family import fit_family
+from .family_windows import damping_outlier_bound
 from .fit_noise import noise_model
 from .frf import FRFSet
 from .lsfd import half_widths, synthesize

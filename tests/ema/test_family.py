@@ -199,7 +199,7 @@ def test_a_heavily_damped_pole_does_not_stretch_its_family_s_window():
     """Windows follow their poles' damping; one pole at 5 % among poles at 0.1-0.3 % would span ± 10 ζ f = ± 270 Hz
     around 540 Hz, over the family at 500 Hz and the mode at 590 Hz. Capped at the poles' outlier bound
     (Hampel's rule, computed here by hand), it spans what the others' damping gives and merges with none."""
-    from ema.family import damping_outlier_bound, family_windows
+    from ema.family_windows import damping_outlier_bound, family_windows
     from ema.lsfd import LOCAL_HALF_WIDTHS
 
     fn, zeta, phi = _truth()
