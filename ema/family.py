@@ -28,8 +28,8 @@ This module fits that model window by window:
   blade family's modes are localised (on the 36-blade campaign, each of the first family's modes has 1.5-7
   blades' worth of energy, and no nodal diameter holds more than 27 % of it), so at one line the outputs of
   different blades see different modes, and the residual summed over the outputs mixes them: its new pole
-  converged beside a mode already fitted (design §8.60). Why this test and not an information criterion: the test's noise
-  is a share of |H| (largest at the peaks), and a pole fitted to that noise lowered the cost by 1400–5700
+  converged beside a mode already fitted (design §8.60). Why this test and not an information criterion: the
+  test's noise is a share of |H| (largest at the peaks), and a pole fitted to that noise lowered the cost by 1400–5700
   times the white-noise variance on the bundled test, above BIC's 1665; the mode it adds explains less than
   the noise of its own band.
 
