@@ -94,7 +94,8 @@ def main() -> None:
         r["targets"] = targets(n, r)
         missed = [k for k, ok in r["targets"].items() if ok is False]
         print(f"{n:>3}{f['n_modes']:>7}{f['n_within_0p05pct']:>6} ({f['one_to_one_within_0p05pct']:.2f})"
-              f"{fmt(r.get('coverage_bound')):>8}{f['n_more_than_1pct_off']:>6}{fmt(f['within_2sd']):>6}{fmt(f.get('mean_shape_mac')):>6}"
+              f"{fmt(r.get('coverage_bound')):>8}{f['n_more_than_1pct_off']:>6}{fmt(f['within_2sd']):>6}"
+              f"{fmt(f.get('mean_shape_mac')):>6}"
               f"{fmt(r.get('shape_mac_bound')):>8}{f['time_s']:>14.1f}{o['time_s']:>14.1f}"
               f"{f['time_s'] / o['time_s']:>7.2f}  {', '.join(missed) or '-'}", flush=True)
     out: dict = {"campaigns": str(root), "seed": args.seed, "rows": {str(n): r for n, r in rows.items()}}

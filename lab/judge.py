@@ -176,12 +176,12 @@ def shape_mac_bound(truth: AssemblyTruth, frf: FRFSet, multiplicative: float = R
     rms = np.sqrt(np.mean(np.abs(H) ** 2, axis=2, keepdims=True))
     v = np.maximum((additive * rms) ** 2 + (multiplicative * np.abs(H)) ** 2, np.finfo(float).tiny)
     w = 2 * np.pi * frf.freq_hz[lines]
+    g = _kernels(2 * np.pi * truth.frequencies_hz, truth.damping_ratio, w, (1j * w) ** FRF_FORMS[frf.form])[0]
+    g2 = np.abs(g) ** 2                                                      # (n_visible, n_lines)
     rng = np.random.default_rng(0)
     out = np.zeros(truth.frequencies_hz.size)
-    for c, (f, z) in enumerate(zip(truth.frequencies_hz, truth.damping_ratio, strict=True)):
-        wr = 2 * np.pi * f
-        g2 = np.abs((1j * w) ** FRF_FORMS[frf.form] / (wr**2 - w**2 + 2j * z * wr * w)) ** 2
-        info = np.einsum("i,oif->o", phi_i[:, c] ** 2, g2[None, None, :] / v)
+    for c in range(out.size):
+        info = np.einsum("i,oif->o", phi_i[:, c] ** 2, g2[c][None, None, :] / v)
         if not np.all(info > 0):
             continue                      # no reference excites the mode: no estimate, MAC 0
         sd = 1.0 / np.sqrt(info)
@@ -235,7 +235,7 @@ def frequency_bound(truth: AssemblyTruth, frf: FRFSet, multiplicative: float | N
     c = (1j * w) ** FRF_FORMS[frf.form]
     f, zeta = truth.frequencies_hz, truth.damping_ratio
     wr = 2 * np.pi * f
-    model = np.einsum("or,ir,rl->oil", phi_o, phi_i, c / (wr[:, None] ** 2 - w**2 + 2j * (zeta * wr)[:, None] * w))
+    model = np.einsum("or,ir,rl->oil", phi_o, phi_i, _kernels(wr, zeta, w, c)[0])
     if multiplicative is not None and additive is not None:
         rms = np.sqrt(np.mean(np.abs(H) ** 2, axis=2, keepdims=True))
         v = (additive * rms) ** 2 + (multiplicative * np.abs(H)) ** 2
@@ -273,6 +273,13 @@ def _test_shapes(truth: AssemblyTruth, frf: FRFSet, who: str) -> tuple[np.ndarra
     return phi_o, phi_i, frf.valid_lines() & (frf.freq_hz > 0)
 
 
+def _kernels(wr: np.ndarray, zeta: np.ndarray, w: np.ndarray, c: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Each mode's FRF kernel ``g_r(ω) = c(ω) / (ω_r² − ω² + 2 j ζ_r ω_r ω)`` and its denominator, each shape
+    (n_modes, n_lines); ``c = (jω)^k`` of the FRF form."""
+    den = wr[:, None] ** 2 - w**2 + 2j * (zeta * wr)[:, None] * w
+    return c / den, den
+
+
 def _clusters(f: np.ndarray, zeta: np.ndarray, span: float) -> list[np.ndarray]:
     """Indices of the modes in groups, split where the gap exceeds ``span`` half-power bandwidths of either side."""
     order = np.argsort(f)
@@ -289,8 +296,7 @@ def _cluster_bound(wr, zeta, w, c, phi_o, phi_i, weight) -> np.ndarray:
     """Frequency bounds (Hz) of one cluster's K modes: Fisher information of (ω, ζ) and of each output's shape
     entries, the shapes eliminated output by output (their blocks couple only through the poles)."""
     K, (n_out, n_in) = wr.size, (phi_o.shape[0], phi_i.shape[0])
-    den = wr[:, None] ** 2 - w**2 + 2j * (zeta * wr)[:, None] * w
-    g = c / den                                                              # (K, L)
+    g, den = _kernels(wr, zeta, w, c)                                        # (K, L)
     dg = np.vstack([-c * (2 * wr[:, None] + 2j * zeta[:, None] * w) / den**2,  # ∂g/∂ω_r
                     -c * (2j * wr[:, None] * w) / den**2])                    # ∂g/∂ζ_r
     poles = np.zeros((2 * K, 2 * K))
