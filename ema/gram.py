@@ -76,9 +76,9 @@ def _mode_gram(Gm: np.ndarray, WA: np.ndarray, WB: np.ndarray) -> np.ndarray:
 
 def _residual_gram(Gmr: np.ndarray, WA: np.ndarray) -> np.ndarray:
     """Re of the inner products of mode columns ``WA`` (n, ca, 4, n_in) with the residual-term columns (reference
-    i, kernel g/(jω)² then g), given the kernels' cross Gram ``Gmr`` (4, n, 2); shape (n, ca, 2 n_in)."""
+    i, then each residual kernel), given the kernels' cross Gram ``Gmr`` (4, n, n_res); shape (n, ca, n_res n_in)."""
     n, ca, _, ni = WA.shape
-    return np.einsum("rcki,krp->rcip", WA.conj(), Gmr).real.reshape(n, ca, 2 * ni)
+    return np.einsum("rcki,krp->rcip", WA.conj(), Gmr).real.reshape(n, ca, Gmr.shape[2] * ni)
 
 
 def gauss_newton(kernels: tuple[np.ndarray, ...], residual_kernels: np.ndarray, part: np.ndarray,
@@ -90,8 +90,8 @@ def gauss_newton(kernels: tuple[np.ndarray, ...], residual_kernels: np.ndarray, 
     ----------
     kernels : (a, b, da, db), each ndarray of complex, shape (n, n_lines)
         ``g/(jω − λ_r)``, the same for conj λ_r, and their derivatives in λ_r (g = (jω)^k of the FRF form).
-    residual_kernels : ndarray of complex, shape (2, n_lines)
-        ``g/(jω)²`` and ``g``.
+    residual_kernels : ndarray of complex, shape (n_res, n_lines)
+        ``g/(jω)²`` and ``g`` (and the same times j, for complex residual terms).
     part : ndarray of complex, shape (n_in, n)
         Participations, 1 at each mode's ``pivot`` reference.
     pivot : ndarray of int, shape (n,)
@@ -99,9 +99,9 @@ def gauss_newton(kernels: tuple[np.ndarray, ...], residual_kernels: np.ndarray, 
         Poles (rad/s).
     res : ndarray, shape (2 n_in n_lines, n_out)
         The least-squares residual at these poles, rows [Re; Im] of (reference, line).
-    coef : ndarray, shape (2 n + 2 n_in, n_out)
+    coef : ndarray, shape (2 n + n_res n_in, n_out)
         The least-squares coefficients: Re ψ, Im ψ, residual terms.
-    R : ndarray, shape (2 n + 2 n_in, 2 n + 2 n_in)
+    R : ndarray, shape (2 n + n_res n_in, 2 n + n_res n_in)
         The triangular factor of the design's QR.
 
     Returns
@@ -113,14 +113,14 @@ def gauss_newton(kernels: tuple[np.ndarray, ...], residual_kernels: np.ndarray, 
     a, b, da, db = kernels
     ni, n = part.shape
     K = np.vstack([a, b, da, db])                                   # (4n, n_lines)
-    Gk = K.conj() @ np.vstack([K, residual_kernels]).T              # (4n, 4n + 2)
-    Gm, Gmr = Gk[:, :4 * n].reshape(4, n, 4, n), Gk[:, 4 * n:].reshape(4, n, 2)
+    Gk = K.conj() @ np.vstack([K, residual_kernels]).T              # (4n, 4n + n_res)
+    Gm, Gmr = Gk[:, :4 * n].reshape(4, n, 4, n), Gk[:, 4 * n:].reshape(4, n, -1)
     WC, WD = _coefficients(lam, part, pivot)
     m2 = WD.shape[0] * WD.shape[1]
     DD = _mode_gram(Gm, WD, WD).reshape(m2, m2)
     # the design's rows of CᵀD: Re ψ of every mode, Im ψ of every mode, then the residual terms
     CD = np.vstack([_mode_gram(Gm, WC, WD).transpose(1, 0, 2, 3).reshape(2 * n, m2),
-                    _residual_gram(Gmr, WD).reshape(m2, 2 * ni).T])
+                    _residual_gram(Gmr, WD).reshape(m2, -1).T])
     QD = solve_triangular(R, CD, trans="T", check_finite=False)     # Qᵀ D, since C = Q R
     G = (DD - QD.T @ QD).reshape(m2 // 2, 2, m2 // 2, 2)            # EᵀE, E = P⊥ D
     M = np.stack([coef[:n], coef[n:2 * n]], axis=1)                 # (n, 2, n_out)
