@@ -24,14 +24,10 @@ This module fits that model window by window:
   most energy get a new pole, its participation that output's residual at that line, and the whole window is
   refined again. The new mode is kept when it explains at least as much of the data in its own half-power band
   as the noise left there (:func:`_explains`), and its damping is not at the bound; otherwise the next (line,
-  output) is tried, and growth stops after :data:`RETRIES` + 1 refusals in a row. Why per output: a mistuned
-  blade family's modes are localised (on the 36-blade campaign, each of the first family's modes has 1.5-7
-  blades' worth of energy, and no nodal diameter holds more than 27 % of it), so at one line the outputs of
-  different blades see different modes, and the residual summed over the outputs mixes them: its new pole
-  converged beside a mode already fitted (design §8.60). Why this test and not an information criterion: the
-  test's noise is a share of |H| (largest at the peaks), and a pole fitted to that noise lowered the cost by 1400–5700
-  times the white-noise variance on the bundled test, above BIC's 1665; the mode it adds explains less than
-  the noise of its own band.
+  output) is tried, and growth stops after :data:`RETRIES` + 1 refusals in a row. Per output, because a
+  mistuned family's modes are localised: at one line different blades' outputs see different modes (design
+  §8.60). Not an information criterion: a test's noise is a share of |H|, and a pole fitted to it beat BIC on
+  the bundled test (design §8.33).
 
 The result replaces the window's modes; their shapes come from ``ψ_r l_rᵀ`` and their standard deviations
 from the larger of two sandwich covariances of the structured fit: White's (the lines as clusters, as
@@ -407,22 +403,15 @@ def fit_family(frf: FRFSet, poles: np.ndarray, window: tuple[float, float], core
         tried[:], failed = False, 0
     if f.size and not hopeless:
         f, zeta, part, pivot = _restart_participations(frf, win, window, f, zeta, part, pivot)
-    # Dropped, the rest refined again, until neither is left: each mode the refinements drove to a damping bound,
+    # Dropped, the rest refined again, until none is left: each mode the refinements drove to a damping bound,
     # which fits the window's background (upper; a 6-blade campaign kept one at 1116.5 Hz, 1 % from every true
-    # mode) or a noise spike (lower; 647.1 Hz, 3.8 % off), as _explains refuses them when grown; else the worst
+    # mode) or a noise spike (lower; 647.1 Hz, 3.8 % off), as _explains refuses them when grown; else the mode
+    # that least explains its band's noise, if it explains less (_unexplained_modes); else the worst
     # mode whose frequency the window leaves undetermined (σ wider than the window): a pole fitted twice (a 24-blade
     # campaign's 1257.2 Hz, twice, σ 1.7e6 Hz each, 1.35 % from every true mode; design §8.58). Not σ against the
     # half-power width fζ: a dense family's real modes reach it (the synthetic family's 498.1 Hz: σ 0.44 Hz).
-    # Before that, the mode that least explains the noise of its band, if it explains less (_explains): growth
-    # tests only the new mode, and a later refinement can leave an older one on the noise of a neighbour's peak
-    # (the synthetic family of tests/ema/test_family.py, weighted: one at ζ 0.017 %, 0.02 % from a true mode,
-    # where growth had refused the same pole twice; design §8.61).
     while True:
-        bad = _at_bound(zeta)
-        if not bad.any() and f.size:
-            solved = win.solve(pole_from_modal(f, zeta), part)[:2]
-            share = np.array([_explained(win, f, zeta, part, r, solved) for r in range(f.size)])
-            bad = (np.arange(f.size) == np.argmin(share)) & (share < 1.0)
+        bad = _unexplained_modes(win, f, zeta, part)
         if not bad.any():
             fit = _result(win, window, f, zeta, part, pivot, n_start)
             ratio = fit.frequency_std_hz / (window[1] - window[0])
@@ -433,6 +422,20 @@ def fit_family(frf: FRFSet, poles: np.ndarray, window: tuple[float, float], core
         f, zeta, part, pivot = f[~bad], zeta[~bad], part[:, ~bad], pivot[~bad]
         if f.size:
             f, zeta, part, pivot = _refine(win, f, zeta, part, pivot)
+
+
+def _unexplained_modes(win: FamilyWindow, f, zeta, part) -> np.ndarray:
+    """Which modes to drop (mask): those at a damping bound; else the one that least explains the noise of its
+    band, if it explains less (:func:`_explains`).
+
+    Why the second: growth tests only the new mode, and a later refinement can leave an older one on a
+    neighbour's peak noise (tests/ema/test_family.py's family: one at ζ 0.017 %; design §8.61)."""
+    bad = _at_bound(zeta)
+    if bad.any() or not f.size:
+        return bad
+    solved = win.solve(pole_from_modal(f, zeta), part)[:2]
+    share = np.array([_explained(win, f, zeta, part, r, solved) for r in range(f.size)])
+    return (np.arange(f.size) == np.argmin(share)) & (share < 1.0)
 
 
 def _restart_participations(frf: FRFSet, win: FamilyWindow, window: tuple[float, float], f: np.ndarray,
