@@ -171,12 +171,12 @@ def campaign_sources(campaign, model: Source, store, opts: RunOptions, nominal: 
 def _ema_nodes(p: Pipeline, campaign) -> None:
     for t in campaign.tests:
         name = names.test_name(t)
-        # the assembly, 3: families resolved, missed ones filled in; every test +1: local shapes less the far modes
-        # (ema.lsfd.local_residues), and windows at the damping outlier bound (the local LSRF check's too: 3, 9); the
-        # assembly, 5: moved starting and off-line scan modes refused; 6: held at the damping bound (projected LM);
-        # 7: a variance ≤ 0 is NaN; 8: every window refined last; 10: the scan at the outlier bound; 11: σ > window
+        # assembly 3: families, missed ones filled in; every test +1: local shapes less far modes, windows at the
+        # damping outlier bound (local LSRF check's too: 3, 9); assembly 5: moved start/off-line modes refused; 6: held
+        # at the damping bound; 7: variance ≤ 0 is NaN; 8: windows refined last; 10: scan at the outlier bound; 11: σ >
+        # window; 12: growth per output, re-pivoting (§8.60), FRFs weighted by their noise (§8.61)
         p.add(Node(names.ema(name), measured.fit_test, {"test": names.test_source(name)}, label=f"EMA {name}",
-                   version=11 if t.type == "assembly" else 3))
+                   version=12 if t.type == "assembly" else 3))
     p.add(Node(names.BLADE_TABLE, measured.blade_table, _ema_of(campaign, "blade"), where="parent"))
 
 
