@@ -3,7 +3,7 @@
 :func:`noise_model` estimates an additive floor per FRF and a share of the response from residual and model
 powers (used by :mod:`ema.unexplained` to find lines that noise alone does not explain); :func:`noise_draws` draws
 residuals from it for the sandwich standard deviations of a family window (:mod:`ema.family`);
-:func:`difference_floor` estimates each FRF's noise level from its second differences over the lines, with no model.
+:func:`difference_floor` estimates each FRF's noise level from its fourth differences over the lines, with no model.
 """
 
 from __future__ import annotations
@@ -33,7 +33,7 @@ def noise_model(P: np.ndarray, M: np.ndarray, axis: int) -> tuple[np.ndarray, fl
 
 
 def difference_floor(H: np.ndarray) -> np.ndarray:
-    """Each FRF's noise standard deviation from its second differences over the lines, with no model.
+    """Each FRF's noise standard deviation from its fourth differences over the lines, with no model.
 
     A difference-based variance estimator (Gasser, Sroka & Jennen-Steinmetz, Biometrika 1986), of fourth order:
     for white noise of variance σ² on a response smooth at the line spacing, the fourth difference
