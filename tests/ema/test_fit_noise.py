@@ -16,7 +16,7 @@ from ema.family_windows import family_windows
 from ema.fit_noise import difference_floor, noise_scale
 from ema.modal import modal_from_pole, pole_from_modal
 
-from .synth import modal_frfs
+from .synth import modal_frfs, rig_noise
 
 N_OUT, N_IN = 16, 2
 
@@ -72,9 +72,7 @@ def _quiet_mode_case(seed: int = 4):
     phi[quiet, 1] = rng.choice([-1.0, 1.0], 4) * rng.uniform(0.7, 1.3, 4) * 0.02
     phi[:N_IN, 1] = 0.05               # the hammers (at strong points) excite it weakly
     freq = np.arange(285.0, 320.0, 0.0625)
-    H = modal_frfs(freq, fn, zeta, phi, phi[:N_IN], "mobility")
-    rms = np.sqrt(np.mean(np.abs(H) ** 2, axis=2, keepdims=True))
-    H = H * (1 + 0.005 * _noise(H.shape, rng)) + 0.002 * rms * _noise(H.shape, rng)
+    H = rig_noise(modal_frfs(freq, fn, zeta, phi, phi[:N_IN], "mobility"), rng)
     outputs = [(k + 1, 3) for k in range(N_OUT)]
     return FRFSet(freq, H, outputs, outputs[:N_IN], form="mobility"), fn, zeta
 
