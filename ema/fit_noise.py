@@ -89,8 +89,8 @@ def noise_draws(win, res: np.ndarray, n_draws: int = N_DRAWS) -> np.ndarray:
     """Residuals drawn from the window's noise model, shape (n_draws, rows, n_out), from a fixed seed.
 
     The model of :func:`ema.unexplained.unexplained_lines`, fitted to the window's own residual ``res`` (rows,
-    n_out; from :meth:`ema.family.FamilyWindow.solve`): an additive floor per FRF (the median residual power)
-    and a share of the fitted response (from the strong values). ``win``: the :class:`ema.family.FamilyWindow`.
+    n_out; from :meth:`ema.family_window.FamilyWindow.solve`): an additive floor per FRF (the median residual power)
+    and a share of the fitted response (from the strong values). ``win``: the :class:`ema.family_window.FamilyWindow`.
     """
     shape = (2, win.n_in, win.n_lines, win.n_out)
     r, fitted = res.reshape(shape), (win.Y - res).reshape(shape)

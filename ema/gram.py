@@ -1,6 +1,6 @@
 """The Gauss–Newton normal equations of a family window, from Gram matrices of its kernels over the lines.
 
-Every column of the window's design and of Kaufman's Jacobian (:class:`ema.family.FamilyWindow`) is, over the
+Every column of the window's design and of Kaufman's Jacobian (:class:`ema.family_window.FamilyWindow`) is, over the
 rows (reference i, line l), a sum of separable terms ``c_i k(ω_l)``: a coefficient per reference times one of
 a few kernels of the frequency. Mode r's columns use only ``a_r = g/(jω − λ_r)``, ``b_r = g/(jω − conj λ_r)``
 and their derivatives in λ; the residual terms use ``g/(jω)²`` and ``g``. So every inner product of two
@@ -42,7 +42,7 @@ def _coefficients(lam: np.ndarray, part: np.ndarray, pivot: np.ndarray
         The columns Re ψ_r and Im ψ_r of the design.
     WD : ndarray of complex, shape (n, 4 n_in, 4, n_in)
         The derivatives of those two columns (interleaved: d1, d2) in f, log ζ, then Re and Im of each
-        non-pivot participation, in :meth:`ema.family.FamilyWindow.normal_equations`' order.
+        non-pivot participation, in :meth:`ema.family_window.FamilyWindow.gauss_newton`' order.
     """
     ni, n = part.shape
     P = part.T                                                      # (n, n_in)
@@ -124,13 +124,28 @@ def gauss_newton(kernels: tuple[np.ndarray, ...], residual_kernels: np.ndarray, 
     QD = solve_triangular(R, CD, trans="T", check_finite=False)     # Qᵀ D, since C = Q R
     G = (DD - QD.T @ QD).reshape(m2 // 2, 2, m2 // 2, 2)            # EᵀE, E = P⊥ D
     M = np.stack([coef[:n], coef[n:2 * n]], axis=1)                 # (n, 2, n_out)
-    owner = np.repeat(np.arange(n), 2 * ni)
-    N = np.einsum("rao,sbo->rsab", M, M)
-    JJ = np.einsum("kalb,klab->kl", G, N[owner][:, owner])
-    # Eᵀr = Dᵀr, as Qᵀr = 0 for the least-squares residual
+    JJ = weighted_blocks(G, M)
+    # Eᵀr = Dᵀr, as Qᵀr = 0 for the least-squares residual; and Σ_o (D_{k,a}ᵀ r_o) M[r, a, o] = D_{k,a}ᵀ ρ_{r,a} with
+    # ρ_{r,a} = Σ_o r_o M[r, a, o]: one real product over the outputs first, then the kernels per mode. The kernels'
+    # product with every output's residual took 128 ms of 242 on a 50-mode, 192-output window.
     lines = a.shape[1]
-    rc = (res[:ni * lines] + 1j * res[ni * lines:]).reshape(ni, lines, -1)
-    Z = (K.conj() @ rc.transpose(1, 0, 2).reshape(lines, -1)).reshape(4, n, ni, -1)
-    DtR = np.einsum("rcki,krio->rco", WD.conj(), Z).real.reshape(m2 // 2, 2, -1)
-    grad = -np.einsum("kao,kao->k", DtR, M[owner])
-    return 0.5 * (JJ + JJ.T), grad
+    rho = res @ M.reshape(2 * n, -1).T                              # (rows, 2n): columns (mode, a)
+    rho = (rho[:ni * lines] + 1j * rho[ni * lines:]).reshape(ni, lines, n, 2).transpose(2, 1, 0, 3)
+    Z = np.matmul(K.conj().reshape(4, n, lines).transpose(1, 0, 2), rho.reshape(n, lines, 2 * ni))
+    grad = -np.einsum("rpaki,rkia->rp", WD.conj().reshape(n, 2 * ni, 2, 4, ni), Z.reshape(n, 4, ni, 2))
+    return 0.5 * (JJ + JJ.T), grad.real.reshape(-1)
+
+
+def weighted_blocks(G: np.ndarray, M: np.ndarray) -> np.ndarray:
+    """JᵀJ from the projected derivative columns' Gram ``G`` (n p, 2, n p, 2) and the coefficients ``M`` (n, 2,
+    n_out): entry (k, l) is Σ_ab G[k, a, l, b] (M_r[a] · M_s[b]) for k's mode r and l's mode s; shape (n p, n p).
+
+    Four products of strided blocks, not an einsum over the owners' expanded (n p, n p, 2, 2) coefficient
+    products: 1.7 ms instead of 8.7 ms for 30 modes of 12 parameters."""
+    n = M.shape[0]
+    p = G.shape[0] // n
+    flat = M.transpose(1, 0, 2).reshape(2 * n, -1)                  # rows (a, mode)
+    N = (flat @ flat.T).reshape(2, n, 2, n).transpose(1, 3, 0, 2)   # (n, n, 2, 2): a product, not an einsum
+    Gs = G.reshape(n, p, 2, n, p, 2)
+    JJ = sum(Gs[:, :, a, :, :, b] * N[:, None, :, None, a, b] for a in range(2) for b in range(2))
+    return JJ.reshape(n * p, n * p)
