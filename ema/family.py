@@ -23,11 +23,11 @@ This module fits that model window by window:
 - **Growth.** Starting from the modes an ordinary fit selected, the line and output where the residual holds
   most energy get a new pole, its participation that output's residual at that line, and the whole window is
   refined again. The new mode is kept when it explains at least as much of the data in its own half-power band
-  as the noise left there (:func:`_explains`), and its damping is not at the bound; otherwise the next (line,
-  output) is tried, and growth stops after :data:`RETRIES` + 1 refusals in a row. Per output, because a
-  mistuned family's modes are localised: at one line different blades' outputs see different modes (design
-  §8.60). Not an information criterion: a test's noise is a share of |H|, and a pole fitted to it beat BIC on
-  the bundled test (design §8.33).
+  as the noise left there (:func:`_explains`), that band lies in the window and its damping is not at a bound
+  (:func:`_kept`); otherwise the next (line, output) is tried, and growth stops after :data:`RETRIES` + 1
+  refusals in a row. Per output, because a mistuned family's modes are localised: at one line different
+  blades' outputs see different modes (design §8.60). Not an information criterion: a test's noise is a
+  share of |H|, and a pole fitted to it beat BIC on the bundled test (design §8.33).
 
 The result replaces the window's modes; their shapes come from ``ψ_r l_rᵀ`` and their standard deviations
 from the larger of two sandwich covariances of the structured fit: White's (the lines as clusters, as
