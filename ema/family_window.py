@@ -91,8 +91,9 @@ class FamilyWindow:
     def scores(self, lam: np.ndarray, part: np.ndarray, pivot: np.ndarray, draws: np.ndarray
                ) -> tuple[np.ndarray, np.ndarray]:
         """Gauss–Newton matrix JᵀJ (as :meth:`gauss_newton`) and each spectral line's share of the gradient, for
-        the sandwich covariance of :func:`_result`: for the fit's residual and then each of ``draws`` (residuals
-        drawn from a noise model, shape (n_draws, rows, n_out)); shape (1 + n_draws, n_lines, n_parameters).
+        the sandwich covariance of :func:`ema.family.fit_family`: for the fit's residual and then each of
+        ``draws`` (residuals drawn from a noise model, shape (n_draws, rows, n_out)); shape (1 + n_draws,
+        n_lines, n_parameters).
 
         Kaufman's variable-projection Jacobian of parameter k of mode r is ``−P⊥ (d1_k x_rᵀ + d2_k y_rᵀ)``
         (d1, d2: the derivatives of mode r's two design columns; x_r, y_r: its rows Re ψ_r, Im ψ_r of the
