@@ -18,7 +18,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.linalg import solve_triangular
 
-__all__ = ["gauss_newton"]
+__all__ = ["gauss_newton", "weighted_blocks"]
 
 # the kernels of mode r, in this order, and the coefficient slots of a column
 _A, _B, _DA, _DB = range(4)
