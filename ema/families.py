@@ -14,7 +14,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from .family import FamilyFit, fit_family
+from .family import FamilyFit, fit_weighted
 from .family_windows import family_windows
 from .fit_noise import noise_scale
 from .frf import FRFSet
@@ -55,11 +55,9 @@ def resolve_families(frf: FRFSet, poles: np.ndarray, band: tuple[float, float], 
     # full-assembly test, and unweighted, the strong FRFs' noise buried modes that the quiet ones show (the bundled
     # campaign's 1081.7 and 1087.4 Hz; design §8.61)
     scale = noise_scale(frf, band)
-    weighted = replace(frf, H=frf.H / scale[:, :, None])
     for window, core in jobs:
         inside = (f >= window[0]) & (f <= window[1])
-        fit = fit_family(weighted, poles[inside], window, core)
-        fit = replace(fit, residues=fit.residues * scale[None])
+        fit = fit_weighted(frf, scale, poles[inside], window, core)
         log.info("family %.6g-%.6g Hz: %d modes -> %d", *window, fit.n_start, fit.n_modes)
         fits.append(fit)
     return fits

@@ -39,7 +39,7 @@ from the larger of two sandwich covariances of the structured fit: White's (the 
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -50,7 +50,7 @@ from .frf import FRFSet
 from .lsfd import lsfd
 from .modal import modal_from_pole, pole_from_modal
 
-__all__ = ["FamilyFit", "FamilyWindow", "damping_outlier_bound", "family_windows", "fit_family",
+__all__ = ["FamilyFit", "FamilyWindow", "damping_outlier_bound", "family_windows", "fit_family", "fit_weighted",
            "normalised_participations", "step_parameters", "ZETA_BOUNDS"]
 
 #: Damping ratio bounds of the refinement (a pole driven to the lower bound is fitting a noise spike).
@@ -211,11 +211,9 @@ def _explains(win: FamilyWindow, f, zeta, part, r: int) -> bool:
 
     The cost rises by Δ when the mode is removed (the others' shapes re-solved); that Δ is compared with the
     residual energy left in the mode's band with it. A pole that fits noise cannot remove more than the noise
-    there; a mode of the data removes its own resonance, many times the noise at any visible peak. A mode whose
-    damping ends at a bound of :data:`ZETA_BOUNDS` is refused too (seed 11's campaign grew one at 5 %, 1.9 % from
-    every true mode: a pole fitting the window's background).
+    there; a mode of the data removes its own resonance, many times the noise at any visible peak.
     """
-    return _explained(win, f, zeta, part, r) >= 1.0 and not _at_bound(zeta[r])
+    return _explained(win, f, zeta, part, r) >= 1.0
 
 
 def _explained(win: FamilyWindow, f, zeta, part, r: int, solved: tuple | None = None) -> float:
@@ -315,9 +313,18 @@ def fit_family(frf: FRFSet, poles: np.ndarray, window: tuple[float, float], core
             f, zeta, part, pivot = _refine(win, f, zeta, part, pivot)
 
 
+def fit_weighted(frf: FRFSet, weights: np.ndarray, *args, **kwargs) -> FamilyFit:
+    """:func:`fit_family` (same arguments after ``weights``) on the FRFs divided by ``weights`` (n_outputs,
+    n_inputs; e.g. :func:`ema.fit_noise.noise_scale`), its residues scaled back. A rank-one weighting ``a_o b_i``
+    leaves the rank-one model unchanged and makes each FRF count by its own noise."""
+    fit = fit_family(replace(frf, H=frf.H / weights[:, :, None]), *args, **kwargs)
+    return replace(fit, residues=fit.residues * weights[None])
+
+
 def _kept(modes, r: int, span: tuple[float, float]) -> bool:
     """Does mode r of ``modes`` (f, ζ, ...) have its half-power band f(1 ± ζ) inside ``span`` (the window's lines,
-    Hz), and its damping off the bounds?
+    Hz), and its damping off the bounds of :data:`ZETA_BOUNDS` (seed 11's campaign grew one at 5 %, 1.9 % from
+    every true mode: a pole fitting the window's background)?
 
     The half-power band, as the window's data must hold the peak to determine f and ζ: a 6-blade campaign's grown
     1279.6 Hz (ζ 0.85 %, 1 % off) sat 0.4 Hz from the edge, where the residual terms stand for the modes outside.

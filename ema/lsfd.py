@@ -22,8 +22,8 @@ from .modal import ModalModel, modal_from_pole
 from .poles import band_data
 
 __all__ = ["lsfd", "local_windows", "local_residues", "modal_model", "synthesize", "fit_quality", "dominance",
-           "modal_basis", "band_lines", "column_sines", "half_widths", "shapes_from_residues", "LOCAL_HALF_WIDTHS",
-           "LOCAL_MIN_LINES"]
+           "modal_basis", "band_lines", "column_sines", "nearly_dependent", "triangular_solve", "half_widths",
+           "shapes_from_residues", "LOCAL_HALF_WIDTHS", "LOCAL_MIN_LINES"]
 
 
 def modal_basis(poles: np.ndarray, freq_hz: np.ndarray, form: str, residuals: bool) -> np.ndarray:
@@ -65,15 +65,9 @@ def _solve(B: np.ndarray, Y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     rhs = np.vstack([Y.real, Y.imag])
     scale = np.linalg.norm(A, axis=0)
     scale[scale == 0] = 1.0
-    A = A / scale
-    # QR and back substitution; the minimum-norm lstsq only where two columns nearly depend (its SVD took 16 of
-    # a 48-blade fit's 290 s, with as many right-hand sides as FRFs)
-    Q, R = np.linalg.qr(A)
-    if column_sines(R).min(initial=1.0) > 1e-8:
-        c = solve_triangular(R, Q.T @ rhs, check_finite=False)
-    else:
-        c = np.linalg.lstsq(A, rhs, rcond=None)[0]
-    c = c / scale[:, None]
+    # QR, not lstsq's SVD: that took 16 of a 48-blade fit's 290 s, with as many right-hand sides as FRFs
+    Q, R = np.linalg.qr(A / scale)
+    c = triangular_solve(R, Q.T @ rhs) / scale[:, None]
     return c, B @ c
 
 
@@ -81,6 +75,20 @@ def column_sines(R: np.ndarray) -> np.ndarray:
     """Each column's sine to the span of the columns before it, from a QR's triangular factor ``R`` (scale-free,
     unlike cond(R)); near 0 where a column nearly depends on the earlier ones. Shape (n_columns,)."""
     return np.abs(np.diag(R)) / np.maximum(np.linalg.norm(R, axis=0), np.finfo(float).tiny)
+
+
+def nearly_dependent(R: np.ndarray) -> bool:
+    """Does a column of a QR's factor ``R`` have a sine of at most 1e-8 to the columns before it (two equal
+    poles), where back substitution and the Gram route of :mod:`ema.gram` lose the digits?"""
+    return bool(column_sines(R).min(initial=1.0) <= 1e-8)
+
+
+def triangular_solve(R: np.ndarray, QtY: np.ndarray) -> np.ndarray:
+    """The least-squares coefficients from a QR ``A = Q R`` and ``Qᵀ Y``: back substitution, or the minimum-norm
+    solution where columns nearly depend (:func:`nearly_dependent`)."""
+    if nearly_dependent(R):
+        return np.linalg.lstsq(R, QtY, rcond=None)[0]
+    return solve_triangular(R, QtY, check_finite=False)
 
 
 def lsfd(

@@ -11,12 +11,11 @@ from __future__ import annotations
 
 import logging
 from collections.abc import Sequence
-from dataclasses import replace
 
 import numpy as np
 
 from .families import merge_families
-from .family import fit_family
+from .family import fit_weighted
 from .family_windows import damping_outlier_bound
 from .fit_noise import noise_model, noise_scale
 from .frf import FRFSet
@@ -125,9 +124,7 @@ def fill_unexplained(frf: FRFSet, model: ModalModel, band: tuple[float, float],
         # background of any phase, which the real mass and stiffness lines cannot follow; once weighted, it stands
         # far above the strong FRFs' noise, and a pole at the damping bound took it (24-blade campaign: 0 of the
         # 7 modes of a 634-672 Hz window with real terms, 7 of 7 with complex ones; design §8.61)
-        fit = fit_family(replace(data, H=data.H / scale[:, :, None]), model.poles[inside], window, core, zeta0=zeta,
-                         complex_residuals=True)
-        fit = replace(fit, residues=fit.residues * scale[None])
+        fit = fit_weighted(data, scale, model.poles[inside], window, core, zeta0=zeta, complex_residuals=True)
         log.info("unexplained %.6g Hz (z %.3g > %.3g): %d modes -> %d", freq[k], z[k], threshold, fit.n_start,
                  fit.n_modes)
         f_new, z_new = modal_from_pole(fit.poles)
