@@ -16,7 +16,7 @@ import numpy as np
 
 from .family import FamilyFit, fit_weighted
 from .family_windows import family_windows
-from .fit_noise import noise_scale
+from .fit_noise import band_floor
 from .frf import FRFSet
 from .lsfd import modal_model, shapes_from_residues
 from .modal import ModalModel, modal_from_pole
@@ -54,10 +54,10 @@ def resolve_families(frf: FRFSet, poles: np.ndarray, band: tuple[float, float], 
     # each FRF weighted by its noise (ema.fit_noise.noise_scale): the noise differs by 10^4 between the FRFs of a
     # full-assembly test, and unweighted, the strong FRFs' noise buried modes that the quiet ones show (the bundled
     # campaign's 1081.7 and 1087.4 Hz; design §8.61)
-    scale = noise_scale(frf, band)
+    floor = band_floor(frf, band)
     for window, core in jobs:
         inside = (f >= window[0]) & (f <= window[1])
-        fit = fit_weighted(frf, scale, poles[inside], window, core)
+        fit = fit_weighted(frf, floor, poles[inside], window, core)
         log.info("family %.6g-%.6g Hz: %d modes -> %d", *window, fit.n_start, fit.n_modes)
         fits.append(fit)
     return fits

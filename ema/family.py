@@ -43,9 +43,10 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from .family_shapes import reweighted_residues
 from .family_window import FamilyWindow
 from .family_windows import damping_outlier_bound, family_windows
-from .fit_noise import noise_draws
+from .fit_noise import noise_draws, rank_one_scale
 from .frf import FRFSet
 from .lsfd import lsfd
 from .modal import modal_from_pole, pole_from_modal
@@ -313,12 +314,16 @@ def fit_family(frf: FRFSet, poles: np.ndarray, window: tuple[float, float], core
             f, zeta, part, pivot = _refine(win, f, zeta, part, pivot)
 
 
-def fit_weighted(frf: FRFSet, weights: np.ndarray, *args, **kwargs) -> FamilyFit:
-    """:func:`fit_family` (same arguments after ``weights``) on the FRFs divided by ``weights`` (n_outputs,
-    n_inputs; e.g. :func:`ema.fit_noise.noise_scale`), its residues scaled back. A rank-one weighting ``a_o b_i``
-    leaves the rank-one model unchanged and makes each FRF count by its own noise."""
+def fit_weighted(frf: FRFSet, floor: np.ndarray, *args, **kwargs) -> FamilyFit:
+    """:func:`fit_family` (same arguments after ``floor``) on the FRFs divided by the rank-one part of their noise
+    ``floor`` (n_outputs, n_inputs; :func:`ema.fit_noise.band_floor`, :func:`ema.fit_noise.rank_one_scale`), which
+    leaves the rank-one model unchanged and makes each FRF count by its noise; the shapes then again, output by
+    output, with each FRF weighted by its own noise (:func:`ema.family_shapes.reweighted_residues`)."""
+    weights = rank_one_scale(floor)
     fit = fit_family(replace(frf, H=frf.H / weights[:, :, None]), *args, **kwargs)
-    return replace(fit, residues=fit.residues * weights[None])
+    residues = reweighted_residues(frf, fit.window_hz, fit.poles, fit.residues * weights[None], floor,
+                                   kwargs.get("complex_residuals", False))
+    return replace(fit, residues=residues)
 
 
 def _kept(modes, r: int, span: tuple[float, float]) -> bool:

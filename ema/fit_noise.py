@@ -10,7 +10,8 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["difference_floor", "noise_draws", "noise_model", "noise_scale", "N_DRAWS", "STRONG"]
+__all__ = ["band_floor", "difference_floor", "noise_draws", "noise_model", "noise_scale", "rank_one_scale", "N_DRAWS",
+           "STRONG"]
 
 #: Residual draws of the noise-model part of a family fit's standard deviations (:func:`noise_draws`).
 N_DRAWS = 32
@@ -63,26 +64,29 @@ def difference_floor(H: np.ndarray) -> np.ndarray:
     return np.sqrt(np.maximum(power, np.finfo(float).tiny))
 
 
-def noise_scale(frf, band: tuple[float, float]) -> np.ndarray:
-    """Each FRF's weight in a structured fit: the nearest ``a_o b_i`` to :func:`difference_floor` in log scale.
+def band_floor(frf, band: tuple[float, float]) -> np.ndarray:
+    """Each FRF's noise σ (FRF units) from :func:`difference_floor` over the valid lines of ``band`` (Hz); shape
+    (n_outputs, n_inputs). Over a whole band, not a window: the median then falls off the resonances, which in a
+    dense family's window fill most lines and lift the fourth differences of the strong FRFs."""
+    sel = frf.valid_lines() & (frf.freq_hz >= band[0]) & (frf.freq_hz <= band[1]) & (frf.freq_hz > 0)
+    return difference_floor(frf.H[:, :, sel])
+
+
+def rank_one_scale(floor: np.ndarray) -> np.ndarray:
+    """The nearest ``a_o b_i`` to a per-FRF noise ``floor`` (n_outputs, n_inputs) in log scale: each FRF's weight
+    in a structured fit.
 
     Dividing the FRFs by it makes their noise about equal, so that a mode only a few quiet FRFs see (a disk mode
     at the blade tips, 10^4 times under the strong FRFs' noise) counts by its own noise. The rank-one residues
     ``ψ l^T`` absorb a rank-one weighting exactly (ψ_o scales by a_o, l_i by b_i), so the fit's model is unchanged.
-
-    Parameters
-    ----------
-    frf : FRFSet
-    band : (f_lo, f_hi)
-        Hz; the valid lines in it are used.
-
-    Returns
-    -------
-    ndarray of float64, shape (n_outputs, n_inputs)
     """
-    sel = frf.valid_lines() & (frf.freq_hz >= band[0]) & (frf.freq_hz <= band[1]) & (frf.freq_hz > 0)
-    lg = np.log(difference_floor(frf.H[:, :, sel]))
+    lg = np.log(floor)
     return np.exp(lg.mean(axis=1, keepdims=True) + lg.mean(axis=0, keepdims=True) - lg.mean())
+
+
+def noise_scale(frf, band: tuple[float, float]) -> np.ndarray:
+    """:func:`rank_one_scale` of :func:`band_floor`; shape (n_outputs, n_inputs)."""
+    return rank_one_scale(band_floor(frf, band))
 
 
 def noise_draws(win, res: np.ndarray, n_draws: int = N_DRAWS) -> np.ndarray:

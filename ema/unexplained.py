@@ -17,7 +17,7 @@ import numpy as np
 from .families import merge_families
 from .family import fit_weighted
 from .family_windows import damping_outlier_bound
-from .fit_noise import noise_model, noise_scale
+from .fit_noise import band_floor, noise_model
 from .frf import FRFSet
 from .lsfd import half_widths, synthesize
 from .modal import ModalModel, modal_from_pole, pole_from_modal
@@ -103,7 +103,7 @@ def fill_unexplained(frf: FRFSet, model: ModalModel, band: tuple[float, float],
     scan = unexplained_lines(frf, model, band) if model.n_modes else None
     # weighted by each FRF's noise, as resolve_families; from the data's differences, not this scan's floor: that
     # one holds the modes the model misses as well (design §8.61)
-    scale = noise_scale(frf, band)
+    floor = band_floor(frf, band)
     while scan is not None:
         freq, z, threshold, _ = scan
         z = z.copy()
@@ -124,7 +124,7 @@ def fill_unexplained(frf: FRFSet, model: ModalModel, band: tuple[float, float],
         # background of any phase, which the real mass and stiffness lines cannot follow; once weighted, it stands
         # far above the strong FRFs' noise, and a pole at the damping bound took it (24-blade campaign: 0 of the
         # 7 modes of a 634-672 Hz window with real terms, 7 of 7 with complex ones; design §8.61)
-        fit = fit_weighted(data, scale, model.poles[inside], window, core, zeta0=zeta, complex_residuals=True)
+        fit = fit_weighted(data, floor, model.poles[inside], window, core, zeta0=zeta, complex_residuals=True)
         log.info("unexplained %.6g Hz (z %.3g > %.3g): %d modes -> %d", freq[k], z[k], threshold, fit.n_start,
                  fit.n_modes)
         f_new, z_new = modal_from_pole(fit.poles)

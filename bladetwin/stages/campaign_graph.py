@@ -171,12 +171,10 @@ def campaign_sources(campaign, model: Source, store, opts: RunOptions, nominal: 
 def _ema_nodes(p: Pipeline, campaign) -> None:
     for t in campaign.tests:
         name = names.test_name(t)
-        # assembly 3: families, missed ones filled in; every test +1: local shapes less far modes, windows at the
-        # damping outlier bound (local LSRF check's too: 3, 9); assembly 5: moved start/off-line modes refused; 6: held
-        # at the damping bound; 7: variance ≤ 0 is NaN; 8: windows refined last; 10: scan at the outlier bound; 11: σ >
-        # window; 12: growth per output, re-pivoting (§8.60); 13: weighted by noise (§8.61); all +1: §8.62
+        # a version per change of the EMA's results (design §8: assembly 13 in §8.61, all +1 in §8.62, assembly 15
+        # in §8.63: the shapes by each FRF's own noise)
         p.add(Node(names.ema(name), measured.fit_test, {"test": names.test_source(name)}, label=f"EMA {name}",
-                   version=14 if t.type == "assembly" else 4))
+                   version=15 if t.type == "assembly" else 4))
     p.add(Node(names.BLADE_TABLE, measured.blade_table, _ema_of(campaign, "blade"), where="parent"))
 
 
