@@ -63,6 +63,40 @@ def test_the_bound_is_the_mean_mac_of_the_weighted_least_squares_shape():
                            threshold=3.0)[0] > bound
 
 
+
+def test_the_joint_bound_is_the_mean_mac_of_the_joint_least_squares_shapes():
+    # two modes 0.0025 half-power bandwidths apart (a near-degenerate pair of a blade family), both seen by both
+    # references alike: with the other's shape known each is nearly exact, estimated together they are not
+    rng = np.random.default_rng(5)
+    fn, zeta = np.array([300.0, 300.003]), np.array([0.002, 0.002])
+    phi = rng.standard_normal((12, 2))
+    refs = [0, 1]
+    phi[refs] = [[1.0, 1.0], [0.7, 0.7]]     # the same participations: the references cannot tell them apart
+    setup, freq, clean, v, outputs = _rig_test(fn, zeta, phi, refs, (250.0, 350.0), 0.25)
+    truth = AssemblyTruth(fn, fn, phi, np.ones(2), tuple(outputs), zeta)
+    frf = FRFSet(freq, clean, outputs, [outputs[k] for k in refs], form="mobility")
+    alone = shape_mac_bound(truth, frf, setup.multiplicative_noise, setup.additive_noise, n_draws=400)
+    joint = shape_mac_bound(truth, frf, setup.multiplicative_noise, setup.additive_noise, n_draws=400, joint=True)
+    # the estimate the joint bound describes, drawn directly: poles and reference entries known, each output's
+    # two entries together by weighted least squares over references and lines
+    a = np.stack([_mobility(freq, fn[r:r + 1], zeta[r:r + 1], np.ones((1, 1)), phi[refs, r:r + 1])[0]
+                  for r in range(2)])                                                # (2, n_in, n_lines)
+    macs = []
+    for _ in range(300):
+        y = clean + np.sqrt(v / 2) * (rng.standard_normal(clean.shape) + 1j * rng.standard_normal(clean.shape))
+        est = np.array([np.linalg.lstsq((a / np.sqrt(v[o])[None]).reshape(2, -1).T,
+                                        (y[o] / np.sqrt(v[o])).ravel(), rcond=None)[0] for o in range(12)])
+        macs.append(np.abs(np.sum(est.conj() * phi, axis=0)) ** 2
+                    / (np.sum(np.abs(est) ** 2, axis=0) * np.sum(phi**2, axis=0)))
+    assert np.all(alone > 0.99), alone
+    assert np.all(joint < 0.95), joint
+    np.testing.assert_allclose(joint, np.mean(macs, axis=0), atol=0.03)
+    # far apart, the two bounds agree
+    far = AssemblyTruth(np.array([300.0, 330.0]), np.array([300.0, 330.0]), phi, np.ones(2), tuple(outputs), zeta)
+    clean_far = _mobility(freq, far.frequencies_hz, zeta, phi, phi[refs])
+    frf_far = FRFSet(freq, clean_far, outputs, [outputs[k] for k in refs], form="mobility")
+    np.testing.assert_allclose(shape_mac_bound(far, frf_far, joint=True), shape_mac_bound(far, frf_far), atol=0.01)
+
 def test_each_found_mode_is_judged_against_its_nearest_true_mode():
     # a family of four true modes 0.5 Hz (0.1 %) apart, the last invisible; the EMA found the first twice, missed
     # the next two and found the last: a maximum one-to-one pairing within 1 % would put the duplicate on 500.5 Hz
