@@ -2,8 +2,9 @@
 
 :func:`resolve_families` fits every window of :func:`ema.family.family_windows` that holds two or more of a
 model's modes with rank-one residues (:func:`ema.family.fit_family`), grown while a new mode explains more than the
-noise of its band, on the FRFs weighted by their noise (:func:`ema.fit_noise.noise_scale`).
-:func:`merge_families` then takes each mode from the fit that gives it the smaller standard deviation.
+noise of its band, on the FRFs weighted by the rank-one part of their noise, each window's shapes then by each
+FRF's own (:func:`ema.family.fit_weighted`). :func:`merge_families` then takes each mode from the fit that gives it
+the smaller standard deviation.
 """
 
 from __future__ import annotations
@@ -51,7 +52,7 @@ def resolve_families(frf: FRFSet, poles: np.ndarray, band: tuple[float, float], 
         from tqdm import tqdm
         jobs = tqdm(jobs, desc="mode families", unit="window")
     fits = []
-    # each FRF weighted by its noise (ema.fit_noise.noise_scale): the noise differs by 10^4 between the FRFs of a
+    # each FRF weighted by its noise (ema.fit_noise.band_floor): the noise differs by 10^4 between the FRFs of a
     # full-assembly test, and unweighted, the strong FRFs' noise buried modes that the quiet ones show (the bundled
     # campaign's 1081.7 and 1087.4 Hz; design §8.61)
     floor = band_floor(frf, band)
