@@ -1,15 +1,15 @@
 """A family window's shapes re-estimated output by output, each FRF weighted by its own noise.
 
 The structured fit (:func:`ema.family.fit_family`) finds the poles and participations on FRFs divided by a
-rank-one weighting ``a_o b_i`` (:func:`ema.fit_noise.noise_scale`): one design for every output, so the shapes
+rank-one weighting ``a_o b_i`` (:func:`ema.fit_noise.rank_one_scale`): one design for every output, so the shapes
 are one solve. But the noise of a full-assembly test is not rank one. Near a hammer, the in-plane outputs of the
-struck blade see a mass line about 100 times the resonances, and its noise with it, while the same outputs
+struck blade see a mass line about 1000 times the resonances, and its noise with it, while the same outputs
 hammered from other blades are quiet; ``a_o b_i`` weights those FRFs alike. On a 48-blade campaign the shape
 entries there came out 10 times their truth with arbitrary phase (411.9 Hz: 0.20 against 0.023, with true poles
 too), and the mean shape MAC was 0.65; without the in-plane outputs it was 0.88 (design §8.63).
 
 Given the poles and participations, each output's shape is a weighted least-squares problem of its own, with
-weight ``1/σ_oi²`` per reference (σ from :func:`ema.fit_noise.difference_floor` on the window's lines). The
+weight ``1/σ_oi²`` per reference (σ: :func:`ema.fit_noise.band_floor`, over the whole band, not the window). The
 residual terms belong to one FRF each, so they are projected out reference by reference, where the weight is a
 constant; with the projected design ``C̃ = Q R`` (one QR for the window) output o solves
 ``(Σ_i w_oi Q_iᵀ Q_i) z = Σ_i w_oi Q_iᵀ ỹ_oi`` and ``R x = z`` (``Q_i``: Q's rows of reference i). The first

@@ -222,8 +222,9 @@ def _joint_mac_bound(phi_o, phi_i, g, v, rng, n_draws, threshold, f, zeta, freq)
             info = W.conj() @ W.T                                             # Fisher information, (K, K)
             seen &= np.real(np.diag(info)) > 0
             lam, U = np.linalg.eigh(info)
-            # the covariance's square root from the information's eigenvectors; an unexcited direction: no estimate
-            root = U * np.where(lam > lam.max(initial=0.0) * 1e-14, 1.0 / np.sqrt(np.maximum(lam, 1e-300)), 0.0)
+            # the covariance's square root from the information's eigenvectors; a direction the references do not
+            # excite gets a huge variance (its modes' estimates are noise there), not none
+            root = U / np.sqrt(np.maximum(lam, max(lam.max(initial=0.0), np.finfo(float).tiny) * 1e-14))
             z = rng.standard_normal((n_draws, idx.size)) + 1j * rng.standard_normal((n_draws, idx.size))
             e = (z / np.sqrt(2)) @ root.T
             est[:, o] += e
