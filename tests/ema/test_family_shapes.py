@@ -13,7 +13,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from ema.family import fit_family
+from ema.family import fit_family, fit_weighted
 from ema.family_shapes import reweighted_residues
 from ema.family_window import FamilyWindow
 from ema.fit_noise import band_floor, rank_one_scale
@@ -77,10 +77,13 @@ def test_noisy_frfs_beside_the_impact_no_longer_spoil_the_shapes(seed):
     assert excess[NEAR, 0].min() > np.abs(np.delete(excess[:, 0], NEAR)).max() + 1.0
     start = pole_from_modal(fn[inside], zeta[inside])
     weights = rank_one_scale(floor)
-    # what fit_weighted does, in its two steps, so that the rank-one shapes can be compared (one fit, not two;
-    # from the true poles, no growth: the poles are not what is tested)
+    # what fit_weighted does, in its two steps, so that the rank-one shapes can be compared (from the true poles,
+    # no growth: the poles are not what is tested)
     rank_one = fit_family(replace(frf, H=frf.H / weights[:, :, None]), start, WINDOW, CORE, max_added=0)
     own = reweighted_residues(frf, WINDOW, rank_one.poles, rank_one.residues * weights[None], floor)
+    both = fit_weighted(frf, floor, start, WINDOW, CORE, max_added=0)      # the two steps in one call
+    np.testing.assert_allclose(both.poles, rank_one.poles)
+    np.testing.assert_allclose(both.residues, own)
     before = _shape_macs(rank_one.residues * weights[None], rank_one.poles, fn, phi)
     after = _shape_macs(own, rank_one.poles, fn, phi)
     assert after.size == before.size >= inside.sum() - 1
