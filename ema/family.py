@@ -314,15 +314,16 @@ def fit_family(frf: FRFSet, poles: np.ndarray, window: tuple[float, float], core
             f, zeta, part, pivot = _refine(win, f, zeta, part, pivot)
 
 
-def fit_weighted(frf: FRFSet, floor: np.ndarray, *args, **kwargs) -> FamilyFit:
+def fit_weighted(frf: FRFSet, floor: np.ndarray, *args, complex_residuals: bool = False, **kwargs) -> FamilyFit:
     """:func:`fit_family` (same arguments after ``floor``) on the FRFs divided by the rank-one part of their noise
     ``floor`` (n_outputs, n_inputs; :func:`ema.fit_noise.band_floor`, :func:`ema.fit_noise.rank_one_scale`), which
     leaves the rank-one model unchanged and makes each FRF count by its noise; the shapes then again, output by
     output, with each FRF weighted by its own noise (:func:`ema.family_shapes.reweighted_residues`)."""
     weights = rank_one_scale(floor)
-    fit = fit_family(replace(frf, H=frf.H / weights[:, :, None]), *args, **kwargs)
+    fit = fit_family(replace(frf, H=frf.H / weights[:, :, None]), *args, complex_residuals=complex_residuals,
+                     **kwargs)
     residues = reweighted_residues(frf, fit.window_hz, fit.poles, fit.residues * weights[None], floor,
-                                   kwargs.get("complex_residuals", False))
+                                   complex_residuals)
     return replace(fit, residues=residues)
 
 

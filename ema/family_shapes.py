@@ -61,11 +61,12 @@ def reweighted_residues(frf: FRFSet, window: tuple[float, float], poles: np.ndar
     part = residues[np.arange(n), strongest, :].T                      # (n_in, n)
     C = win.design(poles, part)
     rows = [np.r_[i * L:(i + 1) * L, (ni + i) * L:(ni + i + 1) * L] for i in range(ni)]
+    # the residual terms of reference i live on its rows only, with the same kernels for every reference: one
+    # basis of them over a reference's rows projects them out everywhere
     n_res = win.residual_bases.shape[0]
+    Qr = np.linalg.qr(C[rows[0]][:, 2 * n:2 * n + n_res])[0]
     Ct, Yt = np.empty((2 * ni * L, 2 * n)), np.empty_like(win.Y)
-    for i, rw in enumerate(rows):
-        # the residual terms of reference i live on its rows only: project them out there
-        Qr = np.linalg.qr(C[rw][:, 2 * n + i * n_res:2 * n + (i + 1) * n_res])[0]
+    for rw in rows:
         Cm, Y = C[rw, :2 * n], win.Y[rw]
         Ct[rw], Yt[rw] = Cm - Qr @ (Qr.T @ Cm), Y - Qr @ (Qr.T @ Y)
     Q, R = np.linalg.qr(Ct)

@@ -183,11 +183,11 @@ def shape_mac_bound(truth: AssemblyTruth, frf: FRFSet, multiplicative: float = R
     v = np.maximum((additive * rms) ** 2 + (multiplicative * np.abs(H)) ** 2, np.finfo(float).tiny)
     w = 2 * np.pi * frf.freq_hz[lines]
     g = _kernels(2 * np.pi * truth.frequencies_hz, truth.damping_ratio, w, (1j * w) ** FRF_FORMS[frf.form])[0]
-    g2 = np.abs(g) ** 2                                                      # (n_visible, n_lines)
     rng = np.random.default_rng(0)
     if joint:
         return _joint_mac_bound(phi_o, phi_i, g, v, rng, n_draws, threshold, truth.frequencies_hz,
                                 truth.damping_ratio, frf.freq_hz[lines])
+    g2 = np.abs(g) ** 2                                                      # (n_visible, n_lines)
     out = np.zeros(truth.frequencies_hz.size)
     for c in range(out.size):
         info = np.einsum("i,oif->o", phi_i[:, c] ** 2, g2[c][None, None, :] / v)
@@ -198,10 +198,16 @@ def shape_mac_bound(truth: AssemblyTruth, frf: FRFSet, multiplicative: float = R
         est = phi_o[:, c] + e / np.sqrt(2)
         if threshold is not None:
             est = np.where(np.abs(est) > threshold * sd, est, 0.0)
-        num = np.abs(est @ phi_o[:, c]) ** 2
-        den = np.sum(np.abs(est) ** 2, axis=1) * np.sum(phi_o[:, c] ** 2)
-        out[c] = float(np.mean(np.where(den > 0, num / np.where(den > 0, den, 1.0), 0.0)))
+        out[c] = _mean_mac(est[:, :, None], phi_o[:, c:c + 1])[0]
     return out
+
+
+def _mean_mac(est: np.ndarray, phi: np.ndarray) -> np.ndarray:
+    """Mean MAC over draws of estimated shapes ``est`` (n_draws, n_out, K) against exact ones ``phi`` (n_out, K);
+    0 for an all-zero draw. Shape (K,)."""
+    num = np.abs(np.einsum("dok,ok->dk", est, phi)) ** 2
+    den = np.sum(np.abs(est) ** 2, axis=1) * np.sum(phi**2, axis=0)
+    return np.mean(np.where(den > 0, num / np.where(den > 0, den, 1.0), 0.0), axis=0)
 
 
 def _joint_mac_bound(phi_o, phi_i, g, v, rng, n_draws, threshold, f, zeta, freq) -> np.ndarray:
@@ -231,10 +237,7 @@ def _joint_mac_bound(phi_o, phi_i, g, v, rng, n_draws, threshold, f, zeta, freq)
             if threshold is not None:
                 sd = np.sqrt(np.sum(np.abs(root) ** 2, axis=1))
                 est[:, o] = np.where(np.abs(est[:, o]) > threshold * sd, est[:, o], 0.0)
-        num = np.abs(np.einsum("dok,ok->dk", est, phi_o[:, idx])) ** 2
-        den = np.sum(np.abs(est) ** 2, axis=1) * np.sum(phi_o[:, idx] ** 2, axis=0)
-        mac = np.mean(np.where(den > 0, num / np.where(den > 0, den, 1.0), 0.0), axis=0)
-        out[idx] = np.where(seen, mac, 0.0)
+        out[idx] = np.where(seen, _mean_mac(est, phi_o[:, idx]), 0.0)
     return out
 
 
