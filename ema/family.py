@@ -31,8 +31,9 @@ This module fits that model window by window:
 
 The result replaces the window's modes; their shapes come from ``ψ_r l_rᵀ`` and their standard deviations
 from the larger of two sandwich covariances of the structured fit: White's (the lines as clusters, as
-:func:`ema.uncertainty.pole_std`) and one whose meat comes from residuals drawn from the window's noise model
-(:func:`_result`). :func:`ema.families.resolve_families` runs it on every window of several modes;
+:func:`ema.uncertainty.pole_std`) and one whose meat comes from residuals drawn from the window's noise model,
+correlated over the lines as the residual is (:func:`_result`, :mod:`ema.line_correlation`).
+:func:`ema.families.resolve_families` runs it on every window of several modes;
 :func:`ema.unexplained.unexplained_lines` finds where a model leaves modes out, with
 :func:`ema.fit_noise.noise_model`.
 """
@@ -46,8 +47,9 @@ import numpy as np
 from .family_shapes import reweighted_residues
 from .family_window import FamilyWindow
 from .family_windows import damping_outlier_bound, family_windows
-from .fit_noise import noise_draws, rank_one_scale
+from .fit_noise import noise_draws, rank_one_scale, window_line_correlation
 from .frf import FRFSet
+from .line_correlation import scores_variance
 from .lsfd import lsfd
 from .modal import modal_from_pole, pole_from_modal
 
@@ -399,12 +401,16 @@ def _result(win, window, f, zeta, part, pivot, n_start) -> FamilyFit:
             # or two peak lines, too few clusters for their residuals to measure the noise (seed 11: truths at
             # 2-4 σ). The second takes the meat from residuals drawn from a noise model fitted to the window.
             # Plain Gauss-Newton, one variance for all lines, held only 39-60 % of the truths within ± 2 σ.
-            JJ, per = win.scores(lam, part, pivot, noise_draws(win, res))
-            per_line, drawn = per[0], per[1:]
-            bread = np.linalg.inv(JJ)
-            meat = per_line.T @ per_line * win.Y.size / max(win.Y.size - n_par, 1)
-            meat_model = np.einsum("dlk,dlj->kj", drawn, drawn) / len(drawn)
-            var = np.maximum(np.diag(bread @ meat @ bread), np.diag(bread @ meat_model @ bread))
+            # Where the noise is correlated over the lines (a windowed hammer test's is: ema.line_correlation)
+            # the draws are made as correlated, and their meat sums each line's score with its neighbours' over
+            # the correlation's lags (nothing lies beyond them). Not Newey-West's on the residual's own scores:
+            # they sum to zero at the minimum, and over a peak's few lines that bias took most of the lags' share.
+            rho, _ = window_line_correlation(win, res)
+            JJ, per = win.scores(lam, part, pivot, noise_draws(win, res, rho))
+            u = per @ np.linalg.inv(JJ)                   # each line's score times the (symmetric) bread
+            var_white = scores_variance(u[0], np.ones(1)) * win.Y.size / max(win.Y.size - n_par, 1)
+            var_model = scores_variance(u[1:], np.ones_like(rho)).mean(axis=0)
+            var = np.maximum(var_white, var_model)
             idx = _mode_offsets(n, win.n_in)
             # a variance that round-off left at or below 0 (a near-singular bread) is unknown, not exact
             var = np.where(var > 0, var, np.nan)

@@ -10,8 +10,10 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["band_floor", "difference_floor", "noise_draws", "noise_model", "noise_scale", "rank_one_scale", "N_DRAWS",
-           "STRONG"]
+from .line_correlation import correlate_lines, line_correlation
+
+__all__ = ["band_floor", "difference_floor", "noise_draws", "noise_model", "noise_scale", "rank_one_scale",
+           "window_line_correlation", "N_DRAWS", "STRONG"]
 
 #: Residual draws of the noise-model part of a family fit's standard deviations (:func:`noise_draws`).
 N_DRAWS = 32
@@ -89,18 +91,36 @@ def noise_scale(frf, band: tuple[float, float]) -> np.ndarray:
     return rank_one_scale(band_floor(frf, band))
 
 
-def noise_draws(win, res: np.ndarray, n_draws: int = N_DRAWS) -> np.ndarray:
-    """Residuals drawn from the window's noise model, shape (n_draws, rows, n_out), from a fixed seed.
-
-    The model of :func:`ema.unexplained.unexplained_lines`, fitted to the window's own residual ``res`` (rows,
-    n_out; from :meth:`ema.family_window.FamilyWindow.solve`): an additive floor per FRF (the median residual power)
-    and a share of the fitted response (from the strong values). ``win``: the :class:`ema.family_window.FamilyWindow`.
-    """
+def _window_noise(win, res: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """A family window's residual and its noise model's σ (each of the real and imaginary parts), both shaped
+    (2, n_in, n_lines, n_out): the model of :func:`ema.unexplained.unexplained_lines`, fitted to ``res``."""
     shape = (2, win.n_in, win.n_lines, win.n_out)
     r, fitted = res.reshape(shape), (win.Y - res).reshape(shape)
     P = r[0] ** 2 + r[1] ** 2
     M = fitted[0] ** 2 + fitted[1] ** 2
     floor, share = noise_model(P, M, axis=1)
-    sd = np.sqrt((floor + share * M) / 2)[None]                       # each of the real and imaginary parts
+    return r, np.broadcast_to(np.sqrt((floor + share * M) / 2)[None], shape)
+
+
+def window_line_correlation(win, res: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`ema.line_correlation.line_correlation` of a family window's residual ``res`` (rows, n_out; from
+    :meth:`ema.family_window.FamilyWindow.solve`) over its lines, each value divided by its noise model's σ."""
+    r, sd = _window_noise(win, res)
+    return line_correlation(r / sd, axis=2)
+
+
+def noise_draws(win, res: np.ndarray, rho: np.ndarray | None = None, n_draws: int = N_DRAWS) -> np.ndarray:
+    """Residuals drawn from the window's noise model, shape (n_draws, rows, n_out), from a fixed seed.
+
+    The model of :func:`ema.unexplained.unexplained_lines`, fitted to the window's own residual ``res`` (rows,
+    n_out; from :meth:`ema.family_window.FamilyWindow.solve`): an additive floor per FRF (the median residual power)
+    and a share of the fitted response (from the strong values); correlated over the lines as ``rho``
+    (:func:`window_line_correlation`; None: independent lines). ``win``: the
+    :class:`ema.family_window.FamilyWindow`.
+    """
+    _, sd = _window_noise(win, res)
     rng = np.random.default_rng(0)
-    return (sd * rng.standard_normal((n_draws, *shape))).reshape(n_draws, -1, win.n_out)
+    white = rng.standard_normal((n_draws, 2, win.n_in, win.n_lines, win.n_out))
+    if rho is not None:
+        white = np.moveaxis(correlate_lines(np.moveaxis(white, 3, -1), rho), -1, 3)
+    return (sd[None] * white).reshape(n_draws, -1, win.n_out)

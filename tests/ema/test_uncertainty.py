@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from ema.frf import FRFSet
 from ema.modal import modal_from_pole, pole_from_modal
@@ -15,7 +16,17 @@ FN = np.array([100.0, 100.3, 104.0])  # a pair 0.3 % apart (under a half-power b
 ZETA = np.array([0.004, 0.004, 0.003])
 
 
-def _draws(n: int):
+def _line_correlated(white: np.ndarray, decay: float) -> np.ndarray:
+    """``white`` smoothed over its last axis (the lines) by a causal exponential kernel, unit variance kept: noise
+    correlated as a windowed record's is, ρ₁ = ``decay``. Not ema.line_correlation's model (a Toeplitz root)."""
+    out = np.empty_like(white)
+    out[..., 0] = white[..., 0]
+    for j in range(1, white.shape[-1]):
+        out[..., j] = decay * out[..., j - 1] + np.sqrt(1 - decay**2) * white[..., j]
+    return out
+
+
+def _draws(n: int, decay: float = 0.0):
     rng = np.random.default_rng(1)
     phi = rng.standard_normal((4, FN.size))
     phi[0] = [1.0, -0.8, 1.1]
@@ -27,7 +38,8 @@ def _draws(n: int):
     for i in range(n):
         r = np.random.default_rng(100 + i)
         # the rig's noise: a share of |H| (largest at the resonances) and a floor, complex Gaussian
-        noise = (0.01 * np.abs(H0) + 0.003 * rms) * (r.standard_normal(H0.shape) + 1j * r.standard_normal(H0.shape))
+        white = r.standard_normal(H0.shape) + 1j * r.standard_normal(H0.shape)
+        noise = (0.01 * np.abs(H0) + 0.003 * rms) * (_line_correlated(white, decay) if decay else white)
         frf = FRFSet(freq, H0 + noise / np.sqrt(2), tuple((k + 1, 3) for k in range(4)), ((1, 3),), form="mobility")
         lam = refine_poles(frf, lam0, band)
         est.append(np.concatenate(modal_from_pole(lam)))
@@ -35,12 +47,17 @@ def _draws(n: int):
     return np.array(est), np.array(pred)
 
 
-def test_pole_std_matches_the_scatter_of_the_estimates_and_covers_the_truth():
-    est, pred = _draws(200)
+@pytest.mark.parametrize(("decay", "low", "cover"), [(0.0, 0.7, 0.85), (0.7, 0.6, 0.75)])
+def test_pole_std_matches_the_scatter_of_the_estimates_and_covers_the_truth(decay, low, cover):
+    # decay 0.7: noise correlated over the lines as the rig's hammer test's (lag one 0.64-0.72). Lines as
+    # independent clusters (White's alone) held 0.44-0.61 of the scatter there; the correlation factor brings it
+    # to 0.66-0.87, short of 1 because the fit absorbs part of the correlation and Bartlett's taper (Andrews 1991)
+    # leaves out part of the rest, hence the looser bounds
+    est, pred = _draws(200, decay)
     ratio = np.median(pred, axis=0) / est.std(axis=0)
-    assert np.all((ratio > 0.7) & (ratio < 1.4)), ratio  # frequencies then damping ratios, 3 modes each
+    assert np.all((ratio > low) & (ratio < 1.4)), ratio  # frequencies then damping ratios, 3 modes each
     covered = np.mean(np.abs(est - np.concatenate([FN, ZETA])) <= 2 * pred, axis=0)
-    assert np.all(covered >= 0.85), covered  # nominal 95 % for a Gaussian estimate
+    assert np.all(covered >= cover), covered  # nominal 95 % for a Gaussian estimate
 
 
 def test_fit_gives_each_mode_its_standard_deviations():
