@@ -1,8 +1,8 @@
 """A campaign whose ``[model]`` is an imported FE model (issue 13, item 3).
 
-The acceptance check: ``bladetwin run`` on a small simulated campaign (coarse mesh, 6 blades, 3×7 grid, as in
-test_run.py) whose ``[model]`` points to the twin exported as Matrix Market files identifies the same
-patterns as the same campaign on the native twin. Each run has its own cache, so that the imported run
+The acceptance check: ``bladetwin run`` on a small simulated campaign (coarse mesh, 4 blades, 3×7 grid) whose
+``[model]`` points to the twin exported as Matrix Market files identifies the same patterns as the same campaign
+on the native twin. Each run has its own cache, so that the imported run
 reduces the imported matrices rather than finding the twin's reduced models (only the EMA's, keyed by the UFF
 files' bytes, is copied over).
 """
@@ -26,7 +26,8 @@ from rom.importers.model import ImportedBladedDisk
 from rom.pattern_io import load_patterns
 
 #: The ideal twin: these tests check the pipeline's behaviour, not its accuracy on a realistic specimen.
-SMALL = ["--level", "coarse", "--blades", "6", "--grid", "3x7", "--known", "3,4", "--realism", "ideal"]
+N_BLADES = 4
+SMALL = ["--level", "coarse", "--blades", str(N_BLADES), "--grid", "3x7", "--known", "1,3", "--realism", "ideal"]
 _FILE_KEYS = ("K", "M", "file", "archive", "dofmap", "coords", "node_sets")
 
 
@@ -87,7 +88,7 @@ def test_run_on_the_exported_twin_identifies_the_same_patterns(runs):
     (out_n, s_n), (out_i, s_i) = runs["native"], runs["imported"]
     pats_n = load_patterns(out_n / "identified_patterns.npz")
     pats_i = load_patterns(out_i / "identified_patterns.npz")
-    assert len(pats_n) == len(pats_i) == 6
+    assert len(pats_n) == len(pats_i) == N_BLADES
     for a, b in zip(pats_n, pats_i, strict=True):
         assert np.array_equal(a.L, b.L) and np.array_equal(a.R, b.R)
     assert s_i["joints"] == s_n["joints"]
@@ -98,7 +99,7 @@ def test_imported_model_is_checked_and_knows_its_flank_coordinates(campaigns):
     _, native, imported = campaigns
     bd_n = load_model(read_campaign(native))
     bd_i = load_model(read_campaign(imported))
-    assert isinstance(bd_i, ImportedBladedDisk) and bd_i.n_slots == 6 and tuple(bd_i.params.grid) == (3, 7)
+    assert isinstance(bd_i, ImportedBladedDisk) and bd_i.n_slots == N_BLADES and tuple(bd_i.params.grid) == (3, 7)
     # rom.academic.flank_coordinates dispatches to the imported model's own axes (here the twin's z, y)
     for a, b in zip(flank_coordinates(bd_n), flank_coordinates(bd_i), strict=True):
         assert np.array_equal(a, b)
@@ -146,8 +147,8 @@ def test_bad_model_tables_give_one_line_errors(campaigns, tmp_path, capsys):
     _one_line_error(capsys, ["run", str(camp), "--out", str(tmp_path / "o"), "--quiet"],
                     "campaign.toml", "[model.blade] M", "blade_M.mtx")
 
-    _set_model(camp, {**good, "placement": {**good["placement"], "n_slots": 5}})
-    with pytest.raises(CampaignError, match=r"n_slots = 5.*n_blades = 6"):
+    _set_model(camp, {**good, "placement": {**good["placement"], "n_slots": N_BLADES + 1}})
+    with pytest.raises(CampaignError, match=rf"n_slots = {N_BLADES + 1}.*n_blades = {N_BLADES}"):
         read_campaign(camp)
     _set_model(camp, {**good, "grids": {**good["grids"], "shape": [3, 5]}})
     with pytest.raises(CampaignError, match=r"shape = \[3, 5\].*\[3, 7\]"):

@@ -60,7 +60,7 @@ def test_free_component_has_exactly_six_rigid_body_modes(coarse_bd, which):
     assert sol.frequencies_hz[0] > 100.0
 
 
-def test_free_disk_nd_pairs_are_degenerate_and_order_matches_table1(coarse_bd):
+def test_free_disk_nd_pairs_are_degenerate_and_match_table1(coarse_bd):
     d = coarse_bd.disk
     sol = solve_modes(d.K, d.M, 14)
     nd = nodal_diameters(sol.shapes[3 * d.node_set("meas") + 2])
@@ -70,6 +70,12 @@ def test_free_disk_nd_pairs_are_degenerate_and_order_matches_table1(coarse_bd):
     for k in keep[:5]:
         if nd[k] >= 1:
             assert f[k + 1] / f[k] - 1 < 1e-6, f"ND {nd[k]} pair split by {f[k + 1] / f[k] - 1:.2e}"
+    # Table 1 after calibration: one factor rescales every eigenvalue (test below), so f · 1090.6 / f₁; each of the
+    # first five within 15 %, the calibrated modulus physical. The default level's: benchmarks/fe_modes.py.
+    scale = TABLE1_HZ[0] / f[keep[0]]
+    err = f[keep[:5]] * scale / TABLE1_HZ - 1
+    assert np.all(np.abs(err) < 0.15), err
+    assert 150e9 < d.meta["E"] * scale**2 < 250e9
 
 
 def test_calibration_hits_target_and_scales_all_modes(coarse_bd):
@@ -78,24 +84,6 @@ def test_calibration_hits_target_and_scales_all_modes(coarse_bd):
     assert sol.frequencies_hz[0] == pytest.approx(900.0, rel=1e-8)
     before = solve_modes(coarse_bd.blade.K, coarse_bd.blade.M, 3).frequencies_hz
     np.testing.assert_allclose(sol.frequencies_hz, before * np.sqrt(cal.scale), rtol=1e-8)
-
-
-@pytest.mark.slow
-def test_default_disk_table1_after_calibration():
-    """Default level: ND order 2, 0, 3, 1, 4 and each of the first five within 15 % of Table 1.
-
-    Calibration rescales every eigenvalue by one factor (checked in the test above), so one modal solve
-    gives the calibrated frequencies as f · 1090.6 / f₁.
-    """
-    d = build_bladed_disk(AcademicParams(level="default")).disk
-    sol = solve_modes(d.K, d.M, 12)
-    nd = nodal_diameters(sol.shapes[3 * d.node_set("meas") + 2])
-    keep = _distinct(sol.frequencies_hz)[:5]
-    assert list(nd[keep]) == TABLE1_ND
-    scale = TABLE1_HZ[0] / sol.frequencies_hz[0]
-    err = sol.frequencies_hz[keep] * scale / TABLE1_HZ - 1
-    assert np.all(np.abs(err) < 0.15), err
-    assert 150e9 < d.meta["E"] * scale**2 < 250e9  # the calibrated modulus stays physical
 
 
 BAD = [
