@@ -216,8 +216,9 @@ def _spread_tips(labels) -> list[int]:
     # Hammer on the tips of FULL_INPUTS blades spread round the disk: mistuned modes localise on a few
     # blades, and one reference would miss the rest.
     tips = [k for k, lab in enumerate(labels) if lab[0] == "blade" and lab[2] == 3]
-    pick = np.unique(np.round(np.linspace(0, len(tips), FULL_INPUTS, endpoint=False)).astype(int))
-    return [tips[i] for i in pick]
+    pick = np.round(np.linspace(0, len(tips), FULL_INPUTS, endpoint=False)).astype(int)
+    # fewer tips than references (a 2-blade disk): the last rounds up to len(tips), one past the end
+    return [tips[i] for i in np.unique(np.minimum(pick, len(tips) - 1))]
 
 
 class _CampaignWriter:

@@ -288,7 +288,7 @@ def test_posterior_runs_without_truth_and_answers_every_unfilmed_joint(campaign,
     lab = tmp_path / "lab"
     shutil.copytree(camp, lab, ignore=shutil.ignore_patterns("truth"))
     out = tmp_path / "out"
-    assert main([*RUN, str(lab), *KNN_ONLY, *PAPER_ROM, *NOFIG, "--method", "both", "--posterior-steps", str(STEPS),
+    assert main([*RUN, str(lab), *KNN_ONLY, *PAPER_ROM, "--method", "both", "--posterior-steps", str(STEPS),
                  "--out", str(out), "--cache-dir",
                  str(root / "cache"), "--quiet"]) == 0
     s = json.loads((out / "summary.json").read_text())
