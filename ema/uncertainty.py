@@ -111,7 +111,7 @@ def _line_factor(Js: np.ndarray, res: np.ndarray, fitted: np.ndarray, bread: np.
     White's estimator takes each line as a cluster of its own. A windowed hammer test's noise is correlated over
     the lines (lag one 0.6-0.7 on the rig), and there White's held the scatter of a mode 0.3 % from its neighbour
     at 0.42-0.61 of the Monte Carlo's (tests/ema/test_uncertainty.py). Newey-West's lags over the residual's own
-    scores did little better (0.48-0.66): at the minimum those scores sum to zero, and a peak spans few lines.
+    scores did little better (0.51-0.66): at the minimum those scores sum to zero, and a peak spans few lines.
     A ratio, not the model's own sandwich: its level overstated the white-noise scatter by up to 1.5 times.
 
     ``Js`` (2 n_f k, p): the scaled Jacobian, rows (re/im, line, column); ``res``, ``fitted``: (2 n_f, k).

@@ -50,7 +50,7 @@ def _draws(n: int, decay: float = 0.0):
 @pytest.mark.parametrize(("decay", "low", "cover"), [(0.0, 0.7, 0.85), (0.7, 0.6, 0.75)])
 def test_pole_std_matches_the_scatter_of_the_estimates_and_covers_the_truth(decay, low, cover):
     # decay 0.7: noise correlated over the lines as the rig's hammer test's (lag one 0.64-0.72). Lines as
-    # independent clusters (White's alone) held 0.44-0.61 of the scatter there; the correlation factor brings it
+    # independent clusters (White's alone) held 0.42-0.61 of the scatter there; the correlation factor brings it
     # to 0.66-0.87, short of 1 because the fit absorbs part of the correlation and Bartlett's taper (Andrews 1991)
     # leaves out part of the rest, hence the looser bounds
     est, pred = _draws(200, decay)
