@@ -47,7 +47,7 @@ import numpy as np
 from .family_shapes import reweighted_residues
 from .family_window import FamilyWindow
 from .family_windows import damping_outlier_bound, family_windows
-from .fit_noise import noise_draws, rank_one_scale, window_line_correlation
+from .fit_noise import noise_draws, rank_one_scale
 from .frf import FRFSet
 from .line_correlation import scores_variance
 from .lsfd import lsfd
@@ -405,8 +405,8 @@ def _result(win, window, f, zeta, part, pivot, n_start) -> FamilyFit:
             # the draws are made as correlated, and their meat sums each line's score with its neighbours' over
             # the correlation's lags (nothing lies beyond them). Not Newey-West's on the residual's own scores:
             # they sum to zero at the minimum, and over a peak's few lines that bias took most of the lags' share.
-            rho, _ = window_line_correlation(win, res)
-            JJ, per = win.scores(lam, part, pivot, noise_draws(win, res, rho))
+            draws, rho = noise_draws(win, res)
+            JJ, per = win.scores(lam, part, pivot, draws)
             u = per @ np.linalg.inv(JJ)                   # each line's score times the (symmetric) bread
             var_white = scores_variance(u[0], np.ones(1)) * win.Y.size / max(win.Y.size - n_par, 1)
             var_model = scores_variance(u[1:], np.ones_like(rho)).mean(axis=0)

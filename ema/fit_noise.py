@@ -12,8 +12,8 @@ import numpy as np
 
 from .line_correlation import correlate_lines, line_correlation
 
-__all__ = ["band_floor", "difference_floor", "noise_draws", "noise_model", "noise_scale", "rank_one_scale",
-           "window_line_correlation", "N_DRAWS", "STRONG"]
+__all__ = ["band_floor", "difference_floor", "noise_draws", "noise_model", "noise_scale", "noise_sd",
+           "rank_one_scale", "N_DRAWS", "STRONG"]
 
 #: Residual draws of the noise-model part of a family fit's standard deviations (:func:`noise_draws`).
 N_DRAWS = 32
@@ -91,36 +91,31 @@ def noise_scale(frf, band: tuple[float, float]) -> np.ndarray:
     return rank_one_scale(band_floor(frf, band))
 
 
-def _window_noise(win, res: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """A family window's residual and its noise model's σ (each of the real and imaginary parts), both shaped
-    (2, n_in, n_lines, n_out): the model of :func:`ema.unexplained.unexplained_lines`, fitted to ``res``."""
-    shape = (2, win.n_in, win.n_lines, win.n_out)
-    r, fitted = res.reshape(shape), (win.Y - res).reshape(shape)
-    P = r[0] ** 2 + r[1] ** 2
+def noise_sd(r: np.ndarray, fitted: np.ndarray, axis: int) -> np.ndarray:
+    """σ of each real and of each imaginary value under :func:`noise_model`, fitted to the residual ``r``.
+
+    ``r``, ``fitted``: residual and model, each shaped (2, ...) with the real parts first; ``axis``: the lines' axis
+    of one part. Returns shape ``r.shape[1:]``."""
     M = fitted[0] ** 2 + fitted[1] ** 2
-    floor, share = noise_model(P, M, axis=1)
-    return r, np.broadcast_to(np.sqrt((floor + share * M) / 2)[None], shape)
+    floor, share = noise_model(r[0] ** 2 + r[1] ** 2, M, axis=axis)
+    return np.sqrt((floor + share * M) / 2)
 
 
-def window_line_correlation(win, res: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`ema.line_correlation.line_correlation` of a family window's residual ``res`` (rows, n_out; from
-    :meth:`ema.family_window.FamilyWindow.solve`) over its lines, each value divided by its noise model's σ."""
-    r, sd = _window_noise(win, res)
-    return line_correlation(r / sd, axis=2)
-
-
-def noise_draws(win, res: np.ndarray, rho: np.ndarray | None = None, n_draws: int = N_DRAWS) -> np.ndarray:
-    """Residuals drawn from the window's noise model, shape (n_draws, rows, n_out), from a fixed seed.
+def noise_draws(win, res: np.ndarray, n_draws: int = N_DRAWS) -> tuple[np.ndarray, np.ndarray]:
+    """Residuals drawn from the window's noise model, shape (n_draws, rows, n_out), from a fixed seed, and the
+    correlation over the lines they were drawn with (:func:`ema.line_correlation.line_correlation`'s ``rho``).
 
     The model of :func:`ema.unexplained.unexplained_lines`, fitted to the window's own residual ``res`` (rows,
     n_out; from :meth:`ema.family_window.FamilyWindow.solve`): an additive floor per FRF (the median residual power)
-    and a share of the fitted response (from the strong values); correlated over the lines as ``rho``
-    (:func:`window_line_correlation`; None: independent lines). ``win``: the
+    and a share of the fitted response (from the strong values); correlated over the lines as the residual, each
+    value divided by its σ, is (white noise: independent lines). ``win``: the
     :class:`ema.family_window.FamilyWindow`.
     """
-    _, sd = _window_noise(win, res)
+    shape = (2, win.n_in, win.n_lines, win.n_out)
+    r = res.reshape(shape)
+    sd = noise_sd(r, (win.Y - res).reshape(shape), axis=1)             # (n_in, n_lines, n_out)
+    rho, _ = line_correlation(r / sd, axis=2)
     rng = np.random.default_rng(0)
-    white = rng.standard_normal((n_draws, 2, win.n_in, win.n_lines, win.n_out))
-    if rho is not None:
-        white = np.moveaxis(correlate_lines(np.moveaxis(white, 3, -1), rho), -1, 3)
-    return (sd[None] * white).reshape(n_draws, -1, win.n_out)
+    white = rng.standard_normal((n_draws, *shape))
+    white = np.moveaxis(correlate_lines(np.moveaxis(white, 3, -1), rho), -1, 3)
+    return (sd * white).reshape(n_draws, -1, win.n_out), rho

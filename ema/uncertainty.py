@@ -25,7 +25,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from .fit_noise import noise_model
+from .fit_noise import noise_sd
 from .frf import FRFSet
 from .line_correlation import line_correlation, scores_variance
 from .lsfd import local_windows
@@ -105,8 +105,8 @@ def _variance(frf: FRFSet, lam: np.ndarray, window: tuple[float, float], residua
 def _line_factor(Js: np.ndarray, res: np.ndarray, fitted: np.ndarray, bread: np.ndarray) -> np.ndarray:
     """How much the noise's correlation over the lines raises each parameter's variance: the sandwich with a noise
     model's meat, correlated over the lines as the residual is (:func:`ema.line_correlation.line_correlation`),
-    over the same with independent lines; 1 for white noise. σ per value from :func:`ema.fit_noise.noise_model`
-    (a floor per column and a share of the fitted response), columns independent.
+    over the same with independent lines; 1 for white noise. σ per value from :func:`ema.fit_noise.noise_sd` (a
+    floor per column and a share of the fitted response), columns independent.
 
     White's estimator takes each line as a cluster of its own. A windowed hammer test's noise is correlated over
     the lines (lag one 0.6-0.7 on the rig), and there White's held the scatter of a mode 0.3 % from its neighbour
@@ -118,8 +118,7 @@ def _line_factor(Js: np.ndarray, res: np.ndarray, fitted: np.ndarray, bread: np.
     """
     n_f, k = res.shape[0] // 2, res.shape[1]
     r, y = res.reshape(2, n_f, k), fitted.reshape(2, n_f, k)
-    floor, share = noise_model(r[0] ** 2 + r[1] ** 2, y[0] ** 2 + y[1] ** 2, axis=0)
-    sd = np.sqrt((floor + share * (y[0] ** 2 + y[1] ** 2)) / 2)                  # (n_f, k), each part
+    sd = noise_sd(r, y, axis=0)                                                  # (n_f, k), each part
     rho, _ = line_correlation(r / sd, axis=1)
     if rho.size == 1:
         return np.ones(Js.shape[1])
