@@ -64,7 +64,8 @@ def resolve_families(frf: FRFSet, poles: np.ndarray, band: tuple[float, float], 
     return fits
 
 
-def merge_families(frf: FRFSet, model: ModalModel, fits: Sequence[FamilyFit]) -> ModalModel:
+def merge_families(frf: FRFSet, model: ModalModel, fits: Sequence[FamilyFit],
+                   found: Sequence[np.ndarray] | None = None) -> ModalModel:
     """The model with each window's modes taken from the more precise of the ordinary and the structured fit.
 
     An ordinary mode corresponds to the nearest structured mode of its window within ``max(2 ζ f, 2 lines)``.
@@ -83,6 +84,9 @@ def merge_families(frf: FRFSet, model: ModalModel, fits: Sequence[FamilyFit]) ->
         The ordinary fit, with ``frequency_std_hz``.
     fits : sequence of FamilyFit
         :func:`resolve_families` on ``model.poles``.
+    found : sequence of ndarray of bool, optional
+        Per fit, shape (n_modes,) in its order: structured modes kept as new even where growth added no mode (the
+        mode :func:`ema.unexplained.fill_unexplained` found on the line that opened its window).
     """
     if not fits:
         return model
@@ -91,7 +95,7 @@ def merge_families(frf: FRFSet, model: ModalModel, fits: Sequence[FamilyFit]) ->
     spacing = float(np.median(np.diff(frf.freq_hz))) if frf.freq_hz.size > 1 else 0.0
     keep_ord = np.ones(f.size, bool)
     lam, res, fs, zs = [], [], [], []
-    for fit in fits:
+    for i, fit in enumerate(fits):
         ff = modal_from_pole(fit.poles)[0]
         keep_s = np.ones(ff.size, bool)
         taken = np.zeros(ff.size, bool)   # each structured mode answers for one ordinary mode at most
@@ -111,7 +115,7 @@ def merge_families(frf: FRFSet, model: ModalModel, fits: Sequence[FamilyFit]) ->
             # growth added nothing, so a structured mode that answers for no ordinary mode is a starting mode
             # that left its own (seed 12: 556.8 and 592.2 Hz moved to 573.7 Hz, 2.7 % from every true mode, and
             # to the window's edge, fitting the tail of two modes outside it); the ordinary modes stay
-            keep_s &= taken
+            keep_s &= taken | (found[i] if found is not None else False)
         lam.append(fit.poles[keep_s])
         res.append(fit.residues[keep_s])
         fs.append(fit.frequency_std_hz[keep_s])
