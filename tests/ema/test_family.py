@@ -348,3 +348,46 @@ def test_growth_keeps_a_mode_between_the_core_and_the_windows_edge(seed):
     found = modal_from_pole(fit.poles)[0]
     assert len(_one_to_one(found, fn)) == 3, found
     assert np.all(np.min(np.abs(found[:, None] / fn[None, :] - 1), axis=1) < 0.01), found
+
+
+
+@pytest.mark.parametrize("seed", [3, 4])
+def test_refusals_that_end_in_one_place_do_not_stop_growth(monkeypatch, seed):
+    """Growth stops after RETRIES + 1 refusals in a row only if they ended in different places.
+
+    A seed-7 36-blade campaign's 1192-1279 Hz window: four trials in a row, from neighbouring lines, each ended at
+    1224.48 Hz explaining less than its band's noise, and growth stopped with 24 of its 38 true modes missing
+    (design §8.67). Here the verdict on the first RETRIES + 2 trials that end where the first one did is made a
+    refusal (as there): counting each, growth stops with true modes missing; not counting the repeats, it finds
+    every mode of the window.
+    """
+    import ema.family as family_module
+
+    rng = np.random.default_rng(seed)
+    fn, zeta = np.array([500.0, 500.7, 501.4, 502.1]), np.full(4, 0.002)
+    phi = rng.standard_normal((N_OUT, fn.size))
+    freq = 0.5 * np.arange(960, 1041)
+    frf = FRFSet(freq, rig_noise(modal_frfs(freq, fn, zeta, phi, phi[:N_IN], "mobility"), rng),
+                 [(k + 1, 3) for k in range(N_OUT)], [(k + 1, 3) for k in range(N_IN)], form="mobility")
+    real = family_module._explains
+
+    def found_with(skip_repeats: bool) -> tuple[np.ndarray, list]:
+        refused = []
+
+        def refused_in_one_place(win, f, zeta_, part, r):
+            same = not refused or abs(f[r] - refused[0][0]) <= refused[0][0] * refused[0][1]
+            if len(refused) < family_module.RETRIES + 2 and same and not family_module._at_bound(zeta_[r]):
+                refused.append((f[r], zeta_[r]))
+                return False
+            return real(win, f, zeta_, part, r)
+
+        monkeypatch.setattr(family_module, "_explains", refused_in_one_place)
+        fit = fit_family(frf, pole_from_modal(fn[:1], zeta[:1]), (480.0, 520.0), (485.0, 515.0),
+                         skip_repeats=skip_repeats)
+        return modal_from_pole(fit.poles)[0], refused
+
+    counted, refused = found_with(False)
+    assert len(refused) == family_module.RETRIES + 1 and len(_one_to_one(counted, fn)) < fn.size, counted
+    found, refused = found_with(True)
+    assert len(refused) == family_module.RETRIES + 2, refused
+    assert len(_one_to_one(found, fn)) == fn.size, found
