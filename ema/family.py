@@ -64,7 +64,7 @@ MAX_ITER, TOL = 150, 1e-9
 #: The relative cost decrease that ends a growth trial's refinement. Looser than :data:`TOL`: a trial only decides
 #: whether its new mode is kept, and the tail of its refinement (gains of 1e-6 to 1e-9 per iteration, up to 100
 #: iterations of 150) was most of the growth's time. A seed-7 36-blade campaign's 1192-1279 Hz window kept the same
-#: 37 modes (37 paired) in 99 s instead of 138 s; its whole fit in 154 s instead of 315 s (design §8.67).
+#: 37 modes (37 paired) in 99 s instead of 138 s (design §8.67).
 TRIAL_TOL = 1e-6
 #: A participation is scaled anew when an entry exceeds its pivot this many times (:func:`_refine`; above 1, so
 #: that two entries of nearly equal size do not swap the pivot back and forth).
