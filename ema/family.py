@@ -373,8 +373,8 @@ def _repeats(f: float, zeta: float, refused: list[tuple[float, float]]) -> bool:
     whether the window holds more modes; :func:`fit_family` does not count it towards :data:`RETRIES`.
 
     Why: a seed-7 36-blade campaign's 1192-1279 Hz window holds 38 true modes. Four trials in a row, from
-    1217.7-1219.1 Hz, each ended at 1224.48 Hz (ζ 0.37 %) explaining less than its band's noise, and growth stopped
-    at 14 modes; the next trial, from 1228.9 Hz, was kept, and growth went on to 37 (design §8.67). Trials that run
+    1218.0-1219.1 Hz, each ended at 1224.48 Hz (ζ 0.37 %) explaining less than its band's noise, and growth stopped
+    at 14 modes; a later one, from 1228.9 Hz, was kept, and growth went on to 37 (design §8.67). Trials that run
     to a damping bound (the window's background) are each counted: such a refusal says the residual left there is
     not a mode."""
     return not _at_bound(zeta) and any(abs(f - g) <= g * z and not _at_bound(z) for g, z in refused)
