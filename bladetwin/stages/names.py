@@ -21,7 +21,7 @@ __all__ = [
     "BLADE_TABLE", "CALIBRATION", "DISK_CB", "BLADE_RUBIN", "DISK_CYCLIC", "DELTA_ALL",
     "FILMS", "KNOWN", "BASELINE", "REFERENCE", "SYNTHETIC", "SENSITIVITY", "DATASET", "FEATURES", "PREDICTIONS",
     "N_FULL_MODES", "VALIDATION", "D1B_ROWS", "RESPONSE", "RESPONSE_TUNED_PAPER", "RESPONSE_TUNED_UPDATED",
-    "RESPONSE_D1B_PAPER", "RESPONSE_D1B_UPDATED", "RESPONSE_TRUTH",
+    "RESPONSE_D1B_PAPER", "RESPONSE_D1B_UPDATED", "RESPONSE_AF_PAPER", "RESPONSE_AF_UPDATED", "RESPONSE_TRUTH",
     "EMA", "TEST", "FULL", "ROM_UPDATE", "PATTERNS", "POSTERIOR", "REFINE", "FAMILIES",
     "PATTERNS_BASELINE", "POSTERIOR_PRIOR", "POSTERIOR_SURROGATE", "POSTERIOR_REPRESENTATION", "POSTERIOR_FACTORS",
     "ROM_UPDATE_STIFFNESS",
@@ -53,6 +53,8 @@ RESPONSE_TUNED_PAPER, RESPONSE_TUNED_UPDATED = "response_tuned_paper", "response
 #: The ROMs' disk–one-blade modes for the AF's intervals, and the truth twin's modes (virtual campaigns).
 RESPONSE_D1B_PAPER, RESPONSE_D1B_UPDATED = "response_d1b_paper", "response_d1b_updated"
 RESPONSE_TRUTH = "response_truth"
+#: Each ROM's amplification factors: nodes of their own, so that the paper's ROM's runs beside the ROM update.
+RESPONSE_AF_PAPER, RESPONSE_AF_UPDATED = "response_af_paper", "response_af_updated"
 
 # ------------------------------------------------------------------------------------------------ families
 #: The families' prefixes: every name of one is ``<prefix><member>``.

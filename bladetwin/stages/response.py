@@ -1,12 +1,13 @@
 """The forced response under engine-order excitation and the mistuning amplification factor (issue 47).
 
-One node, ``response``: for the ROM the run exports (the updated one where it ran, else the paper's) and for
-the paper's beside it, the AF (:func:`rom.forced.amplification_factor`) of each of the lowest families and each
-engine order 0..⌊N/2⌋, with the worst blade. It takes the full-assembly solves the run already made (the
-mistuned disks) and solves only what no node holds: each ROM's *tuned* disk, every joint with the films' mean
-pattern (the baseline's) and every blade the blades' mean (δ, and ε for the updated ROM). Each family gets the
-damping the EMA measured in its band (the full-assembly test, else the disk–one-blade tests); every mode of the
-model takes its family's ratio (:func:`rom.forced.family_damping`), the tuned disk's and the mistuned one's alike.
+For the ROM the run exports (the updated one where it ran, else the paper's) and for the paper's beside it, a
+node each (``response_af_*``, :func:`rom_response_node`) gives the AF (:func:`rom.forced.amplification_factor`)
+of each of the lowest families and each engine order 0..⌊N/2⌋, with the worst blade; ``response`` gathers them
+with the truth's. They take the full-assembly solves the run already made (the mistuned disks) and solve only
+what no node holds: each ROM's *tuned* disk, every joint with the films' mean pattern (the baseline's) and every
+blade the blades' mean (δ, and ε for the updated ROM). Each family gets the damping the EMA measured in its band
+(the full-assembly test, else the disk–one-blade tests); every mode of the model takes its family's ratio
+(:func:`rom.forced.family_damping`), the tuned disk's and the mistuned one's alike.
 
 A family is refused, with its reason, where the solves may miss a mode of its band: the AF needs every one.
 
@@ -36,18 +37,16 @@ from rom.errors import ROMError
 from rom.forced import amplification_factor, blade_modes, family_band, family_damping
 
 from . import names
-from .full import FullSolve, solve_assembly
+from .full import FullSolve
 from .graph import Node
 from .response_intervals import POINT, contact_samples, family_changes, family_interval
-from .rom_update import updated_parts
+from .response_solves import TRUTH_FILE, d1b_node, truth_node, tuned_node
 
 __all__ = ["N_FAMILIES", "POINT", "ROMResponse", "Response", "measured_damping", "band_damping",
-           "refuse_overlapping", "tuned_node", "d1b_node", "truth_node", "response_node", "add_response_node"]
+           "refuse_overlapping", "rom_response_node", "response_node", "add_response_node"]
 
 #: Families the run computes by default (the lowest); the blade point loaded and read on every blade is POINT.
 N_FAMILIES = 3
-#: Modes of each ROM's disk–one-blade solve (:func:`d1b_node`), and the truth's file in a campaign's truth/.
-D1B_MODES, TRUTH_FILE = 10, "response_modes.npz"
 
 
 @dataclass(frozen=True, eq=False)
@@ -262,126 +261,114 @@ def _rom_response(rom: str, solve: str, mistuned, tuned, families, eos, measured
                        0 if samples is None else samples.n_samples, ci_c, sigma, sigma_a)
 
 
-def tuned_node(cyclic, bd, blade, baseline, delta_all: np.ndarray, n_modes: int, update=None):
-    """The node: a ROM's tuned disk, every joint with the pattern ``baseline`` and every blade the blades' mean
-    (δ, and ε of ``update`` on its contact springs where the ROM was updated); its
-    :class:`rom.fe_assembly.AssemblyModes`."""
-    blade, delta_all = updated_parts(blade, bd, delta_all, update)
-    mean = np.broadcast_to(np.mean(delta_all, axis=0), delta_all.shape).copy()
-    return solve_assembly(cyclic, bd, blade, [baseline] * delta_all.shape[0], mean, n_modes).modes
+def _measured(fits: dict) -> tuple:
+    """:func:`measured_damping`, or no damping with the reason: each family is then refused, the run goes on."""
+    try:
+        return measured_damping(fits)
+    except ROMError as exc:
+        return np.zeros(0), np.zeros(0), str(exc)
 
 
-def d1b_node(disk, blade, bd, baseline, delta_all: np.ndarray, update=None):
-    """The node: a ROM's disk–one-blade modes with the pattern ``baseline`` and the blades' mean δ (and ε of
-    ``update``, as :func:`tuned_node`): each family's blade mode ψ at the blade point, which scales the posterior
-    samples' per-blade changes (:mod:`rom.forced.perturbation`)."""
-    from rom.rom_assembly import solve_d1b
-
-    blade, delta_all = updated_parts(blade, bd, delta_all, update)
-    return solve_d1b(disk, blade, baseline, n_modes=D1B_MODES, delta=np.mean(delta_all, axis=0))
+def _axes(delta_all: np.ndarray, n_families: int) -> tuple[int, tuple, tuple]:
+    """Blades N (``delta_all``'s rows), the families 1..``n_families`` and the engine orders 0..⌊N/2⌋."""
+    n = int(delta_all.shape[0])
+    return n, tuple(range(1, n_families + 1)), tuple(range(n // 2 + 1))
 
 
-def truth_node(*, truth_dir: str, sha256: str) -> tuple:
-    """The node: the truth twin's (mistuned, tuned) full-assembly modes at the blade points
-    (:func:`lab.truth_response.load_response_truth`); ``sha256`` of the file keys it to its content."""
-    from lab.truth_response import load_response_truth
-
-    del sha256  # only the key's
-    truth = load_response_truth(truth_dir)
-    return truth.mistuned, truth.tuned
-
-
-def response_node(delta_all: np.ndarray, paper: FullSolve, tuned_paper, exported: FullSolve | None = None,
-                  tuned_exported=None, d1b_paper=None, d1b_exported=None, truth: tuple | None = None, *,
-                  paper_solve: str, exported_solve: str | None = None, n_families: int = N_FAMILIES,
-                  **fits_and_posts) -> Response:
-    """The node: AF per family 1..``n_families`` and EO 0..⌊N/2⌋ of the exported ROM and of the paper's, their
-    intervals over the contact posterior's samples, and the truth's AF.
+def rom_response_node(delta_all: np.ndarray, mistuned: FullSolve, tuned, d1b=None, *, rom: str, solve: str,
+                      n_families: int = N_FAMILIES, **fits_and_posts) -> ROMResponse:
+    """The node of one ROM (``rom``: ``"updated"`` or ``"paper"``): its AF per family 1..``n_families`` and EO
+    0..⌊N/2⌋, and their intervals over the contact posterior's samples. One node per ROM, so that the paper's
+    ROM's (about half of the work) runs while the updated ROM is still being fitted.
 
     Parameters
     ----------
     delta_all : ndarray, shape (n_blades, n_delta)
         The blades' δ (its rows count the blades).
-    paper : FullSolve
-        The paper's ROM with the run's answer (``full/identified`` or ``full/posterior``).
-    tuned_paper, tuned_exported : rom.fe_assembly.AssemblyModes
-        The tuned disks (:func:`tuned_node`) of the paper's ROM and of the updated one.
-    exported : FullSolve, optional
-        The updated ROM's solve (``full/updated``), where the run updated the ROM.
-    d1b_paper, d1b_exported : rom.fe_assembly.AssemblyModes, optional
-        The ROMs' disk–one-blade modes (:func:`d1b_node`), for the intervals.
-    truth : (AssemblyModes, AssemblyModes), optional
-        The truth twin's mistuned and tuned modes (:func:`truth_node`).
-    paper_solve, exported_solve : str
-        The solves' names (members of ``full/``).
+    mistuned : FullSolve
+        The ROM's full-assembly solve with the run's answer (``full/<solve>``).
+    tuned : rom.fe_assembly.AssemblyModes
+        The ROM's tuned disk (:func:`tuned_node`).
+    d1b : rom.fe_assembly.AssemblyModes, optional
+        The ROM's disk–one-blade modes (:func:`d1b_node`), for the intervals.
     **fits_and_posts
         ``TestFit`` of the full-assembly test (``assembly``) or of the disk–one-blade tests: the families'
-        damping; and ``post_NN``: the experimental input's :class:`identify.posterior.JointPosterior` of
-        joint NN, the intervals' samples.
+        damping; ``post_NN``: the experimental input's :class:`identify.posterior.JointPosterior` of joint NN,
+        the intervals' samples; ``d1bfit_NN``: joint NN's disk–one-blade fit, the blade-point amplitudes.
     """
     posts = {int(k[5:]): v for k, v in fits_and_posts.items() if k.startswith("post_")}
     d1b_fits = {int(k[7:]): v for k, v in fits_and_posts.items() if k.startswith("d1bfit_")}
     fits = {k: v for k, v in fits_and_posts.items() if not k.startswith(("post_", "d1bfit_"))}
-    try:
-        measured = measured_damping(fits)
-    except ROMError as exc:  # no damping to give the families: each is refused with the reason, the run goes on
-        measured = (np.zeros(0), np.zeros(0), str(exc))
-    n = int(delta_all.shape[0])
-    families, eos = tuple(range(1, n_families + 1)), tuple(range(n // 2 + 1))
-    samples = contact_samples(n, posts)
+    n, families, eos = _axes(delta_all, n_families)
     test = fits.get("assembly")
     test_hz = None if test is None else np.asarray(test.model.frequencies_hz, float)
-    roms = []
-    if exported is not None:
-        roms.append(_rom_response("updated", exported_solve, exported.modes, tuned_exported, families, eos,
-                                  measured, samples, d1b_exported, test_hz, d1b_fits))
-    roms.append(_rom_response("paper", paper_solve, paper.modes, tuned_paper, families, eos, measured, samples,
-                              d1b_paper, test_hz, d1b_fits))
+    return _rom_response(rom, solve, mistuned.modes, tuned, families, eos, _measured(fits),
+                         contact_samples(n, posts), d1b, test_hz, d1b_fits)
+
+
+def response_node(delta_all: np.ndarray, paper: ROMResponse, exported: ROMResponse | None = None,
+                  truth: tuple | None = None, *, n_joints: int = 0, n_families: int = N_FAMILIES,
+                  **fits) -> Response:
+    """The node: the ROMs' AFs (:func:`rom_response_node`, the exported ROM's first) with the truth's AF.
+
+    ``truth`` is the truth twin's (mistuned, tuned) modes (:func:`truth_node`); ``n_joints`` the unfilmed joints
+    whose posteriors the intervals sample; ``fits`` the tests' fits that give the families' damping.
+    """
+    measured = _measured(fits)
+    n, families, eos = _axes(delta_all, n_families)
+    roms = (paper,) if exported is None else (exported, paper)
     true = None if truth is None else _rom_response("truth", "truth", truth[0], truth[1], families, eos, measured)
-    source = (f"{samples.n_samples} samples of the contact posterior at {len(posts)} unfilmed joints"
+    n_samples = roms[0].n_samples
+    source = (f"{n_samples} samples of the contact posterior at {n_joints} unfilmed joints"
               + (", each with every blade's frequency off by the family's discrepancy against the full-assembly test"
-                 if test_hz is not None else " (no full-assembly test: no blade-frequency discrepancy)")
+                 if "assembly" in fits else " (no full-assembly test: no blade-frequency discrepancy)")
               + (" and every blade's point amplitude off by the scatter of the disk–one-blade tests' amplitudes"
                  if any(np.isfinite(r.amplitude_discrepancy).any() for r in roms)
                  else " (no disk–one-blade test gives a mass-normalised blade-point amplitude: no amplitude "
                       "discrepancy)")
-              if samples is not None else "no contact posterior in this run (--method knn)")
-    return Response(n, POINT, families, eos, measured[2], tuple(roms), true, source)
+              if n_samples else "no contact posterior in this run (--method knn)")
+    return Response(n, POINT, families, eos, measured[2], roms, true, source)
 
 
 def add_response_node(p, campaign, opts) -> None:
-    """Add the ``response`` node, its tuned disks, disk–one-blade modes and the truth's modes to a campaign's
-    pipeline ``p``."""
-    paper = "posterior" if opts.posterior else "identified"
+    """Add the ``response`` node, each ROM's AF node, their tuned disks, disk–one-blade modes and the truth's
+    modes to a campaign's pipeline ``p``."""
     solve = {"cyclic": names.DISK_CYCLIC, "bd": names.FE_MODEL, "blade": names.BLADE_RUBIN,
              "baseline": names.BASELINE, "delta_all": names.DELTA_ALL, "n_modes": names.N_FULL_MODES}
     d1b = {"disk": names.DISK_CB, "bd": names.FE_MODEL, "blade": names.BLADE_RUBIN, "baseline": names.BASELINE,
            "delta_all": names.DELTA_ALL}
-    p.add(Node(names.RESPONSE_TUNED_PAPER, tuned_node, solve, {}, label="tuned disk (paper's ROM)"))
-    inputs = {"delta_all": names.DELTA_ALL, "paper": names.full(paper), "tuned_paper": names.RESPONSE_TUNED_PAPER}
-    params = {"paper_solve": paper, "n_families": N_FAMILIES}
-    if opts.posterior:
-        p.add(Node(names.RESPONSE_D1B_PAPER, d1b_node, d1b, {}, label="disk–one-blade modes (paper's ROM)"))
-        inputs["d1b_paper"] = names.RESPONSE_D1B_PAPER
-        unfilmed = [t.index for t in campaign.of_type("d1b") if t.index not in campaign.known_joints]
-        inputs.update({f"post_{j:02d}": names.posterior_joint("experimental", j) for j in unfilmed})
-        inputs.update({f"d1bfit_{t.index:02d}": names.ema(names.test_name(t)) for t in campaign.of_type("d1b")})
+    kind = "assembly" if campaign.of_type("assembly") else "d1b"
+    tests = {names.test_name(t): names.ema(names.test_name(t)) for t in campaign.of_type(kind)}
+    unfilmed = [t.index for t in campaign.of_type("d1b") if t.index not in campaign.known_joints]
+    samples = ({**{f"post_{j:02d}": names.posterior_joint("experimental", j) for j in unfilmed},
+                **{f"d1bfit_{t.index:02d}": names.ema(names.test_name(t)) for t in campaign.of_type("d1b")}}
+               if opts.posterior else {})
+    # per ROM: its full solve, its update, its words, and its nodes (tuned disk, d1b modes, AF)
+    roms = {"paper": ("posterior" if opts.posterior else "identified", None, "paper's ROM",
+                      (names.RESPONSE_TUNED_PAPER, names.RESPONSE_D1B_PAPER, names.RESPONSE_AF_PAPER))}
     if opts.updated:
-        p.add(Node(names.RESPONSE_TUNED_UPDATED, tuned_node, {**solve, "update": names.rom_update("answer")}, {},
-                   label="tuned disk (updated ROM)"))
-        inputs.update(exported=names.full("updated"), tuned_exported=names.RESPONSE_TUNED_UPDATED)
-        params["exported_solve"] = "updated"
+        roms["updated"] = ("updated", names.rom_update("answer"), "updated ROM",
+                           (names.RESPONSE_TUNED_UPDATED, names.RESPONSE_D1B_UPDATED, names.RESPONSE_AF_UPDATED))
+    af = {}
+    for rom, (solved, update, what, (tuned, d1b_modes, af_name)) in roms.items():
+        upd = {} if update is None else {"update": update}
+        p.add(Node(tuned, tuned_node, {**solve, **upd}, {}, label=f"tuned disk ({what})"))
+        inputs = {"delta_all": names.DELTA_ALL, "mistuned": names.full(solved), "tuned": tuned, **samples, **tests}
         if opts.posterior:
-            p.add(Node(names.RESPONSE_D1B_UPDATED, d1b_node, {**d1b, "update": names.rom_update("answer")}, {},
-                       label="disk–one-blade modes (updated ROM)"))
-            inputs["d1b_exported"] = names.RESPONSE_D1B_UPDATED
+            p.add(Node(d1b_modes, d1b_node, {**d1b, **upd}, {}, label=f"disk–one-blade modes ({what})"))
+            inputs["d1b"] = d1b_modes
+        af[rom] = p.add(Node(af_name, rom_response_node, inputs,
+                             {"rom": rom, "solve": solved, "n_families": N_FAMILIES},
+                             label=f"amplification factors ({what})")).name
+    inputs = {"delta_all": names.DELTA_ALL, "paper": af["paper"], **tests}
+    if "updated" in af:
+        inputs["exported"] = af["updated"]
     truth = campaign.truth_dir
     if truth is not None and (Path(truth) / TRUTH_FILE).is_file():
         digest = hashlib.sha256((Path(truth) / TRUTH_FILE).read_bytes()).hexdigest()
         p.add(Node(names.RESPONSE_TRUTH, truth_node, {}, {"truth_dir": str(truth), "sha256": digest},
                    where="parent", stored=False, content_key=True, label="the truth's modes"))
         inputs["truth"] = names.RESPONSE_TRUTH
-    kind = "assembly" if campaign.of_type("assembly") else "d1b"
-    inputs.update({names.test_name(t): names.ema(names.test_name(t)) for t in campaign.of_type(kind)})
-    p.add(Node(names.RESPONSE, response_node, inputs, params, version=7,
+    p.add(Node(names.RESPONSE, response_node, inputs,
+               {"n_joints": len(unfilmed) if opts.posterior else 0, "n_families": N_FAMILIES}, version=8,
                label="forced response and amplification factors"))

@@ -168,7 +168,7 @@ def test_a_run_whose_ema_gives_no_damping_refuses_every_family_and_goes_on(small
     run's other results stand), instead of the node failing the run."""
     from types import SimpleNamespace
 
-    from bladetwin.stages.response import response_node
+    from bladetwin.stages.response import rom_response_node
 
     x, _, s = small_run
     opts = RunOptions(cache_dir=s, n_patterns=3, refine=0, rom="paper", method="knn")
@@ -176,9 +176,8 @@ def test_a_run_whose_ema_gives_no_damping_refuses_every_family_and_goes_on(small
                        opts)
     undamped = SimpleNamespace(model=SimpleNamespace(frequencies_hz=np.array([200.0]),
                                                      damping_ratio=np.array([np.nan])))
-    resp = response_node(res[names.DELTA_ALL], res[names.full("identified")], res[names.RESPONSE_TUNED_PAPER],
-                         paper_solve="identified", assembly=undamped)
-    (paper,) = resp.roms
+    paper = rom_response_node(res[names.DELTA_ALL], res[names.full("identified")], res[names.RESPONSE_TUNED_PAPER],
+                              rom="paper", solve="identified", assembly=undamped)
     assert all("no EMA mode with a damping ratio" in why for why in paper.refused), paper.refused
     assert np.all(np.isnan(paper.af))
 
@@ -189,7 +188,8 @@ def test_the_run_s_intervals_from_posterior_samples(small_run):
     against the full-assembly test; samples equal to the answer give back the point AF exactly (contact only)."""
     from types import SimpleNamespace
 
-    from bladetwin.stages.response import d1b_node, response_node
+    from bladetwin.stages.response import rom_response_node
+    from bladetwin.stages.response_solves import d1b_node
 
     x, _, s = small_run
     opts = RunOptions(cache_dir=s, n_patterns=3, refine=0, rom="paper", method="knn")
@@ -203,14 +203,14 @@ def test_the_run_s_intervals_from_posterior_samples(small_run):
     f = np.asarray(d1b.frequencies_hz)
     rng = np.random.default_rng(0)
     args = (res[names.DELTA_ALL], res[names.full("identified")], res[names.RESPONSE_TUNED_PAPER])
-    kw = {"paper_solve": "identified", "d1b_paper": d1b, "assembly": res[names.ema("assembly")]}
+    kw = {"rom": "paper", "solve": "identified", "d1b": d1b, "assembly": res[names.ema("assembly")]}
     moved = {f"post_{j:02d}": SimpleNamespace(answer_hz=f, samples_hz=f * (1 + 0.003 * rng.standard_normal((40, 1))))
              for j in (2, 4)}
     still = {k: SimpleNamespace(answer_hz=f, samples_hz=np.tile(f, (40, 1))) for k in moved}
-    (paper,) = response_node(*args, **kw, **moved).roms
-    (fixed,) = response_node(*args, **kw, **still).roms
+    paper = rom_response_node(*args, **kw, **moved)
+    fixed = rom_response_node(*args, **kw, **still)
     fits = {k: res[v] for k, v in tests.items()}
-    (shaped,) = response_node(*args, **kw, **moved, **fits).roms
+    shaped = rom_response_node(*args, **kw, **moved, **fits)
     assert paper.n_samples == 40
     done = np.isfinite(paper.af)
     assert done.any()
