@@ -58,3 +58,24 @@ def test_a_rank_deficient_design_still_gets_the_explicit_normal_equations():
     assert np.all(np.isfinite(JJ)) and np.all(np.isfinite(grad))
     np.testing.assert_allclose(JJ, JJ_explicit, rtol=0, atol=1e-8 * np.abs(JJ_explicit).max())
     np.testing.assert_allclose(grad, per_line[0].sum(axis=0), rtol=0, atol=1e-8 * np.abs(grad).max())
+
+
+@pytest.mark.parametrize("n,n_in", [(1, 1), (4, 2), (12, 6)])
+def test_the_mode_blocks_from_the_columns_structure_equal_the_sums_over_every_reference(n, n_in):
+    """``_mode_grams`` sums over the references before it multiplies (the columns' structure); the reference
+    spells every column out over the references and sums every product (one einsum), for random Gram entries,
+    poles, participations and pivots."""
+    from ema.gram import _coefficients, _mode_grams
+
+    rng = np.random.default_rng(n + n_in)
+    A = rng.standard_normal((4 * n, 4 * n)) + 1j * rng.standard_normal((4 * n, 4 * n))
+    Gm = (A @ A.conj().T).reshape(4, n, 4, n)
+    part = rng.standard_normal((n_in, n)) + 1j * rng.standard_normal((n_in, n))
+    pivot = rng.integers(0, n_in, n)
+    part[pivot, np.arange(n)] = 1.0
+    lam = pole_from_modal(rng.uniform(100.0, 900.0, n), rng.uniform(1e-3, 2e-2, n))
+    WC, WD = _coefficients(lam, part, pivot)
+    DD, CD = _mode_grams(Gm, part, pivot, lam)
+    for got, W in ((DD, WD), (CD, WC)):
+        want = np.einsum("rcki,krqs,sdqi->rcsd", W.conj(), Gm, WD).real
+        np.testing.assert_allclose(got, want, rtol=0, atol=1e-13 * np.abs(want).max())
