@@ -151,8 +151,8 @@ def _graph(campaigns: list[Campaign], opts: RunOptions, store: Store, say
     if opts.calibrate:
         cals: dict[str, list] = {}
         for k, (c, p, spec) in enumerate(zip(campaigns, pipes, spec_of, strict=True)):
-            say(f"calibrating the FE model's materials on the tests of {c.name} (paper §5), with the disk–one-blade "
-                "tests' EMA beside it")
+            say(f"calibrating the FE model's materials on the tests of {c.name} (paper §5); the disk–one-blade "
+                "tests are fitted beside it")
             cals.setdefault(spec, []).append(_calibration(c, p, models[spec], store, opts, say, notes[k]))
         for spec, found in cals.items():
             used[spec], note = _calibrated(models[spec], found)
