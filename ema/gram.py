@@ -35,6 +35,17 @@ def _pole_derivatives(lam: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return 2 * np.pi * (-zeta + 1j * root), w * (-1.0 - 1j * zeta / root) * zeta
 
 
+#: A participation column's coefficients on the kernels a and b, for Re l_i (d1, d2) then Im l_i (d1, d2)
+_PART = np.array([[1, 1], [1j, -1j], [1j, -1j], [-1, -1]])
+
+
+def _free_references(pivot: np.ndarray, n_in: int) -> np.ndarray:
+    """Each mode's references other than its pivot, ascending (its participations that are parameters); shape
+    (n, n_in − 1)."""
+    ref = np.broadcast_to(np.arange(n_in), (pivot.size, n_in))
+    return np.sort(np.where(ref == pivot[:, None], n_in, ref), axis=1)[:, :n_in - 1]
+
+
 def _coefficients(lam: np.ndarray, part: np.ndarray, pivot: np.ndarray
                   ) -> tuple[np.ndarray, np.ndarray]:
     """Each mode's design and Jacobian columns as coefficients on its four kernels, per reference.
@@ -57,17 +68,11 @@ def _coefficients(lam: np.ndarray, part: np.ndarray, pivot: np.ndarray
         A_, B_ = P * dl[:, None], P.conj() * np.conj(dl)[:, None]
         WD[:, 2 * j, _DA], WD[:, 2 * j, _DB] = A_, B_
         WD[:, 2 * j + 1, _DA], WD[:, 2 * j + 1, _DB] = 1j * A_, -1j * B_
-    free = np.ones((n, ni), bool)
-    free[np.arange(n), pivot] = False
-    r, i = np.nonzero(free)                                         # each mode's free references, ascending
-    c = 4 + 4 * (np.cumsum(free, axis=1)[r, i] - 1)                 # Re l_i: d1, d2; Im l_i: d1, d2
-    for k, (ca, cb) in enumerate(((1, 1), (1j, -1j), (1j, -1j), (-1, -1))):
+    r, i = np.repeat(np.arange(n), ni - 1), _free_references(pivot, ni).ravel()
+    c = 4 + 4 * np.tile(np.arange(ni - 1), n)                       # Re l_i: d1, d2; Im l_i: d1, d2
+    for k, (ca, cb) in enumerate(_PART):
         WD[r, c + k, _A, i], WD[r, c + k, _B, i] = ca, cb
     return WC, WD
-
-
-#: A participation column's coefficients on the kernels a and b, for Re l_i (d1, d2) then Im l_i (d1, d2)
-_PART = np.array([[1, 1], [1j, -1j], [1j, -1j], [-1, -1]])
 
 
 def _pole_pole(Gm: np.ndarray, SV: tuple, left: tuple, right: tuple) -> np.ndarray:
@@ -121,9 +126,7 @@ def _mode_grams(Gm: np.ndarray, part: np.ndarray, pivot: np.ndarray, lam: np.nda
     poles = (_DA, _DB, np.stack([d_f, 1j * d_f, d_z, 1j * d_z], axis=1),
              np.stack([d_f.conj(), -1j * d_f.conj(), d_z.conj(), -1j * d_z.conj()], axis=1))
     design = (_A, _B, np.broadcast_to([1, 1j], (n, 2)), np.broadcast_to([1, -1j], (n, 2)))
-    # each mode's free references, ascending (the pivot's participation is no parameter)
-    ref = np.broadcast_to(np.arange(ni), (n, ni))
-    free = np.sort(np.where(ref == pivot[:, None], ni, ref), axis=1)[:, :ni - 1]               # (n, n_in - 1)
+    free = _free_references(pivot, ni)                                                       # (n, n_in - 1)
     Pf = P[:, free]                                                       # (n, n, n_in - 1): P[r, free[s, m]]
     m = 4 * (ni - 1)
     pq = _pole_part(Gm, Pf, poles).reshape(n, 4, n, m)
@@ -136,8 +139,7 @@ def _mode_grams(Gm: np.ndarray, part: np.ndarray, pivot: np.ndarray, lam: np.nda
     DD[:, 4:, :, 4:] = 0.0
     block = DD[:, 4:, :, 4:].reshape(n, ni - 1, 4, n, ni - 1, 4)          # a view: filled in place
     for i in range(ni):
-        R = np.flatnonzero(pivot != i)                                    # the modes whose reference i is free
-        at = i - (pivot[R] < i)                                           # its place among their free ones
+        R, at = np.nonzero(free == i)                     # the modes whose reference i is free, and its place
         block[R[:, None], at[:, None], :, R[None, :], at[None, :], :] = qq[R][:, :, R].transpose(0, 2, 1, 3)
     cd = _pole_part(Gm, Pf, design).reshape(n, 2, n, m)
     return DD, np.concatenate([_pole_pole(Gm, SV, design, poles), cd], axis=3)
