@@ -234,7 +234,7 @@ def _identify_nodes(p: Pipeline, campaign, opts: RunOptions) -> None:
     p.add(Node(names.PREDICTIONS, knn.predict, {"dataset": names.DATASET, "features": names.FEATURES,
                                                 "delta_all": names.DELTA_ALL, "known": names.KNOWN},
                {"n_delta_modes": opts.n_delta_modes, "bias": opts.bias, "step_pct": opts.step_pct}, where="parent",
-               version=2))
+               version=3))
     unfilmed = [t.index for t in campaign.of_type("d1b") if t.index not in campaign.known_joints]
     for name in identify_inputs(campaign, opts):
         refined = {}

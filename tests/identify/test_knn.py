@@ -263,3 +263,32 @@ def test_a_joint_missing_a_feature_mode_is_matched_on_the_others():
     idx, _, _ = brute_two_step(D, F, y, w, Dq[full], Fq[full], 1, "subset")
     for r, k in enumerate(full):
         assert labels[k + 1][:2] == tuple(y[idx[r, 0]])
+
+
+def test_every_input_is_refined_down_to_its_model_error_and_the_numerical_one_to_the_experimentals():
+    """``bladetwin run``'s k-NN node: the targets and where each input's refinement stops. The experimental input
+    is the measured features with the ROM's bias divided out, fitted down to the ROM's scatter on the filmed joints
+    (the mean over the feature modes, in %); without the bias correction, bias and scatter add in quadrature. The
+    numerical input is the control of the same procedure (the paper's Case A), so it stops where the experimental
+    one does, not at zero (design §8.71)."""
+    from bladetwin.stages.bias import Features
+    from bladetwin.stages.knn import _targets
+
+    measured = np.array([[500.0, 700.0, 900.0, 1100.0], [510.0, np.nan, 905.0, 1090.0]])
+    bias = np.array([0.01, -0.02, 0.003, 0.0])
+    spread = np.array([0.002, 0.004, 0.001, 0.5])
+    numerical = np.array([[499.0, 901.0], [509.0, 903.0]])
+    f = Features(np.array([2, 5]), measured, bias, spread, {}, numerical, True)
+    targets, tol = _targets(f, [0, 2], bias=True)
+    np.testing.assert_allclose(targets["experimental"], measured[:, [0, 2]] / (1 + bias[[0, 2]]), rtol=1e-15)
+    np.testing.assert_array_equal(targets["experimental_no_bias"], measured[:, [0, 2]])
+    np.testing.assert_array_equal(targets["numerical"], numerical)
+    assert tol["experimental"] == pytest.approx(100 * (0.002 + 0.001) / 2, rel=1e-12)
+    assert tol["experimental_no_bias"] == pytest.approx(100 * (np.hypot(0.01, 0.002) + np.hypot(0.003, 0.001)) / 2,
+                                                        rel=1e-12)
+    assert tol["numerical"] == tol["experimental"] > 0
+    _, tol = _targets(f, [0, 2], bias=False)
+    assert set(tol) == {"experimental", "numerical"}
+    # no reference patterns: no numerical input
+    _, tol = _targets(Features(np.array([2, 5]), measured, bias, spread, {}, None, True), [0, 2], bias=True)
+    assert "numerical" not in tol
