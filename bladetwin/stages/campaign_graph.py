@@ -173,9 +173,9 @@ def _ema_nodes(p: Pipeline, campaign) -> None:
         name = names.test_name(t)
         # a version per change of the EMA's results (design §8: assembly 13 in §8.61, all +1 in §8.62, assembly 15
         # in §8.63: the shapes by each FRF's own noise; all +1 in §8.64: σ with the lines' noise correlation;
-        # assembly 17 in §8.66, 18 in §8.67: growth's refusals; 19 in §8.70: the Gram's round-off)
+        # assembly 17 in §8.66, 18 in §8.67: growth's refusals; 19 in §8.70: the Gram's round-off; 20 in §8.73)
         p.add(Node(names.ema(name), measured.fit_test, {"test": names.test_source(name)}, label=f"EMA {name}",
-                   version=19 if t.type == "assembly" else 5))
+                   version=20 if t.type == "assembly" else 5))
     p.add(Node(names.BLADE_TABLE, measured.blade_table, _ema_of(campaign, "blade"), where="parent"))
 
 

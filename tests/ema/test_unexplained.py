@@ -16,9 +16,9 @@ import pytest
 from ema import FRFSet
 from ema.lsfd import modal_model
 from ema.mac import mac_paired, pair_by_frequency
-from ema.modal import pole_from_modal
+from ema.modal import ModalModel, pole_from_modal
 from ema.uncertainty import pole_std
-from ema.unexplained import fill_unexplained, unexplained_lines
+from ema.unexplained import fill_unexplained, unexplained_lines, with_margins
 
 from .synth import modal_frfs, rig_noise
 
@@ -132,3 +132,19 @@ def test_a_model_pole_that_moves_onto_the_missing_line_still_brings_its_mode_in(
     filled = fill_unexplained(frf, replace(model, frequency_std_hz=f_std, damping_std=z_std), BAND)
     rows, cols = pair_by_frequency(filled.frequencies_hz, FN, 5e-4)
     assert set(FN[cols]) == set(FN), filled.frequencies_hz
+
+
+def test_a_scan_window_takes_in_the_modes_whose_half_power_band_reaches_into_it():
+    """``with_margins``: the window grows to take in, with its half-power band f(1 ± ζ), each mode outside it whose
+    band reaches across an edge; once, not on to the modes whose bands reach into those margins; never beyond the
+    band; a window no band reaches into is left alone. The expected edges are worked out by hand from f(1 ± ζ)."""
+    f = np.array([190.0, 199.0, 200.8, 201.6, 205.0, 230.0])
+    zeta = np.array([0.004, 0.002, 0.003, 0.003, 0.002, 0.002])
+    model = ModalModel(f, zeta, np.ones((1, f.size), complex), ((1, 3),))
+    # 200.8 Hz reaches down to 200.198 Hz, across 200.5: the edge moves to 200.8 × 1.003 = 201.4024 Hz. 201.6 Hz
+    # (from 200.9952 Hz) reaches into that margin only, and 205.0 Hz (from 204.59 Hz) into nothing. Below, 190.0 Hz
+    # reaches up to 190.76 Hz, across 190.5: the edge moves to 190 × 0.996 = 189.24 Hz.
+    lo, hi = with_margins((190.5, 200.5), model, (180.0, 240.0))
+    assert lo == pytest.approx(189.24, rel=1e-12) and hi == pytest.approx(200.8 * 1.003, rel=1e-12)
+    assert with_margins((192.0, 198.0), model, (180.0, 240.0)) == (192.0, 198.0)
+    assert with_margins((190.5, 200.5), model, (189.5, 201.0)) == (189.5, 201.0)   # the band bounds it
