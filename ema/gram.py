@@ -46,6 +46,25 @@ def _free_references(pivot: np.ndarray, n_in: int) -> np.ndarray:
     return np.sort(np.where(ref == pivot[:, None], n_in, ref), axis=1)[:, :n_in - 1]
 
 
+def _pole_columns(lam: np.ndarray) -> tuple[tuple, tuple]:
+    """The pole-type columns of every mode, as (k, k', x, y): column c of mode r holds ``x[r, c] P[r, i]`` on
+    kernel k and ``y[r, c] conj(P[r, i])`` on kernel k' at every reference i.
+
+    Returns
+    -------
+    design : tuple
+        The design's Re ψ_r and Im ψ_r, on kernels a and b; x and y of shape (n, 2).
+    derivatives : tuple
+        Their derivatives in f and log ζ (d1, d2 interleaved), on kernels da and db; x and y of shape (n, 4).
+    """
+    n = lam.size
+    d_f, d_z = _pole_derivatives(lam)
+    design = (_A, _B, np.broadcast_to(np.array([1, 1j]), (n, 2)), np.broadcast_to(np.array([1, -1j]), (n, 2)))
+    derivatives = (_DA, _DB, np.stack([d_f, 1j * d_f, d_z, 1j * d_z], axis=1),
+                   np.stack([d_f.conj(), -1j * d_f.conj(), d_z.conj(), -1j * d_z.conj()], axis=1))
+    return design, derivatives
+
+
 def _coefficients(lam: np.ndarray, part: np.ndarray, pivot: np.ndarray
                   ) -> tuple[np.ndarray, np.ndarray]:
     """Each mode's design and Jacobian columns as coefficients on its four kernels, per reference.
@@ -61,13 +80,13 @@ def _coefficients(lam: np.ndarray, part: np.ndarray, pivot: np.ndarray
     ni, n = part.shape
     P = part.T                                                      # (n, n_in)
     WC = np.zeros((n, 2, 4, ni), complex)
-    WC[:, 0, _A], WC[:, 0, _B] = P, P.conj()
-    WC[:, 1, _A], WC[:, 1, _B] = 1j * P, -1j * P.conj()
     WD = np.zeros((n, 4 * ni, 4, ni), complex)
-    for j, dl in enumerate(_pole_derivatives(lam)):
-        A_, B_ = P * dl[:, None], P.conj() * np.conj(dl)[:, None]
-        WD[:, 2 * j, _DA], WD[:, 2 * j, _DB] = A_, B_
-        WD[:, 2 * j + 1, _DA], WD[:, 2 * j + 1, _DB] = 1j * A_, -1j * B_
+    for W, (k1, k2, x, y) in zip((WC, WD[:, :4]), _pole_columns(lam), strict=True):
+        for c in range(0, x.shape[1], 2):
+            # each d2 column is i times its d1 column on the first kernel, −i times it on the second (as x and y
+            # say); multiplied this way round, the columns keep the bits they had before _pole_columns
+            W[:, c, k1], W[:, c, k2] = P * x[:, c, None], P.conj() * y[:, c, None]
+            W[:, c + 1, k1], W[:, c + 1, k2] = 1j * W[:, c, k1], -1j * W[:, c, k2]
     r, i = np.repeat(np.arange(n), ni - 1), _free_references(pivot, ni).ravel()
     c = 4 + 4 * np.tile(np.arange(ni - 1), n)                       # Re l_i: d1, d2; Im l_i: d1, d2
     for k, (ca, cb) in enumerate(_PART):
@@ -108,10 +127,10 @@ def _mode_grams(Gm: np.ndarray, part: np.ndarray, pivot: np.ndarray, lam: np.nda
     """The mode blocks of DᵀD and CᵀD, from the structure of the columns (:func:`_coefficients`' WD and WC).
 
     A mode's derivative columns in f and log ζ, and its design columns Re ψ and Im ψ, are pole-type
-    (:func:`_pole_pole`); a participation's columns sit on one reference, so two of them meet only on a common
-    reference, where their product does not depend on it. Each block is then a few products of size n², not a
-    product over the references of columns that are mostly zero: on a 50-mode window of a 48-blade test (6
-    references) those products took 16 of the fit's 61 s.
+    (:func:`_pole_columns`, :func:`_pole_pole`); a participation's columns sit on one reference, so two of them
+    meet only on a common reference, where their product does not depend on it. Each block is then a few products
+    of size n², not a product over the references of columns that are mostly zero: on a 50-mode window of a
+    48-blade test (6 references) those products took 16 of the fit's 61 s.
 
     Returns
     -------
@@ -122,10 +141,7 @@ def _mode_grams(Gm: np.ndarray, part: np.ndarray, pivot: np.ndarray, lam: np.nda
     ni, n = part.shape
     P = part.T
     SV = (P.conj() @ P.T, P @ P.T)
-    d_f, d_z = _pole_derivatives(lam)
-    poles = (_DA, _DB, np.stack([d_f, 1j * d_f, d_z, 1j * d_z], axis=1),
-             np.stack([d_f.conj(), -1j * d_f.conj(), d_z.conj(), -1j * d_z.conj()], axis=1))
-    design = (_A, _B, np.broadcast_to([1, 1j], (n, 2)), np.broadcast_to([1, -1j], (n, 2)))
+    design, poles = _pole_columns(lam)
     free = _free_references(pivot, ni)                                                       # (n, n_in - 1)
     Pf = P[:, free]                                                       # (n, n, n_in - 1): P[r, free[s, m]]
     m = 4 * (ni - 1)
