@@ -92,13 +92,14 @@ def _calibration(c: Campaign, p: Pipeline, nominal: Source, store: Store, opts: 
     """The campaign's calibration (paper §5): its node runs first, on its own runner (the blade and disk EMA it
     needs are stored for the main run); the store's problems it met go to ``problems``, for the summary.
 
-    The disk–one-blade tests' EMA runs here too, stored for the main run: it needs no model, and it keeps the
-    second worker busy while the calibration solves (a worker idle for 13 s of the bundled campaign's run).
+    The disk–one-blade tests' EMA runs here too, as fillers (:meth:`Runner.run`), stored for the main run: it needs
+    no model, and it keeps the second worker busy while the calibration solves (a worker idle for 13 s of the
+    bundled campaign's run); the fits left when the calibration is done run in the main run.
     """
     src = campaign_sources(c, nominal, store, opts)
     runner = Runner(store, opts.workers, say)
     d1b = [names.ema(names.test_name(t)) for t in c.of_type("d1b")]
-    cal = runner.run(p, [names.CALIBRATION, *d1b], src)[names.CALIBRATION]
+    cal = runner.run(p, [names.CALIBRATION], src, fillers=d1b)[names.CALIBRATION]
     problems.extend(runner.warnings_of())
     return cal
 

@@ -105,6 +105,29 @@ def test_a_damaged_entry_is_recomputed_with_a_warning(tmp_path):
     assert r.computed == ["d"] and any(str(entry) in w for w in r.warnings)
 
 
+def test_fillers_wait_for_every_other_ready_node_and_none_starts_once_the_targets_are_done(tmp_path):
+    """A filler (``Runner.run(fillers=...)``) goes after every other ready node, a filler that a target needs is
+    computed as any input, and with one worker (nothing idle) no filler runs at all."""
+    def pipe():
+        return Pipeline([*_pipeline(), Node("f", double, {"x": "b"}), Node("g", total, {"x": "b"})])
+    CALLS.clear()
+    r = Runner(Store(tmp_path), 1)
+    assert r.run(pipe(), ["t"], _sources(), fillers=["f", "g"])["t"] == 20.0
+    assert CALLS == ["add", "double", "total"] and r.computed == ["s", "d", "t"]
+    r = Runner(Store(tmp_path), 1)
+    r.run(pipe(), ["t"], _sources(), fillers=["d", "f"])  # "d" feeds the target: needed, not a filler
+    assert r.computed == [] and set(r.reused) == {"s", "d", "t"}
+
+
+def test_a_filler_takes_a_worker_that_the_targets_leave_idle(tmp_path):
+    """Two workers, one ready target node: the ready filler starts beside it, and both are computed."""
+    pipe = Pipeline([*_pipeline(), Node("f", double, {"x": "b"})])
+    r = Runner(Store(tmp_path), 2)
+    r.run(pipe, ["t"], _sources(), fillers=["f"])
+    assert set(r.computed) == {"s", "d", "t", "f"} and r.computed.index("s") == 0
+    assert np.array_equal(r.value("f"), [6.0, 8.0])
+
+
 def halve_with_warning(x):
     import warnings
 
