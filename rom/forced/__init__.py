@@ -28,10 +28,12 @@ leave it. The tuned family's resonance at the EO is that band's EO member.
 
 **Sweep rule.** A uniform grid over the band with step Δf = min_r (2 ζ_r f_r) / ``points_per_bandwidth`` over
 the model's modes inside the band (2 ζ_r f_r is mode r's half-power bandwidth; default 8 points in each),
-then each blade's grid maximum refined by a golden-section maximisation of |X_j| between the grid
-neighbours of its maximum (:data:`GOLDEN_ITERATIONS` steps shrink that bracket to 2e-7 Δf, which leaves the
-peak's amplitude exact to round-off). Two grid steps are a quarter of a bandwidth, so the bracket holds one
-peak unless two modes lie closer than that; the refined peak is never below the grid's maximum.
+then each blade's grid maximum refined between the grid neighbours of its maximum: Newton's method on
+d|X_j|²/dω from the grid maximum, to a relative step of 1e-12; where a step leaves that bracket or meets a
+convex stretch, a golden-section search of it (:data:`GOLDEN_ITERATIONS` steps shrink the bracket to 2e-7 Δf,
+which leaves the peak's amplitude exact to round-off). Two grid steps are a quarter of a bandwidth, so the
+bracket holds one peak unless two modes lie closer than that; the refined peak is never below the grid's
+maximum.
 
 **Amplification factor.** AF = max_j max_ω |X_j(ω)| on the mistuned disk over max_j max_ω |X_j(ω)| on the
 tuned disk, same EO, force, band and damping. "The same damping" means per family, not per mode: mode-by-mode

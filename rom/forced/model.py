@@ -168,6 +168,36 @@ def _times_shapes_t(A: np.ndarray, shapes: np.ndarray) -> np.ndarray:
     return (A.real @ shapes.T) + 1j * (A.imag @ shapes.T)
 
 
+def blade_power_slopes(model: BladeModes, q: np.ndarray, form: str):
+    """f ↦ (P, dP/dω, d²P/dω²) of each blade j at its own frequency f[j] (Hz), P = |response|², for the Newton
+    refinement of the peaks: shapes (n_blades,) → three (n_blades,).
+
+    With X = Σ_r S_jr / D_r, D_r = ω_r² − ω² + i c_r ω, E_r = (2ω − i c_r) / D_r: X' = Σ S E / D and
+    X'' = Σ S (2 / D + 2 E²) / D; the response Y = h X with h = 1, iω or −ω² (the form); P' = 2 Re(Ȳ Y'),
+    P'' = 2 (|Y'|² + Re(Ȳ Y''))."""
+    wr2 = model.omega**2
+    c = 2.0 * model.damping_ratio * model.omega
+    Sq = model.shapes * q
+
+    def slopes(f: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        w = (2.0 * math.pi * f)[:, None]
+        inv = 1.0 / (wr2 - w**2 + 1j * c * w)
+        E = (2.0 * w - 1j * c) * inv
+        SI = Sq * inv
+        X, X1, X2 = SI.sum(axis=1), (SI * E).sum(axis=1), (SI * (2.0 * inv + 2.0 * E**2)).sum(axis=1)
+        w = w[:, 0]
+        if form == "receptance":
+            Y, Y1, Y2 = X, X1, X2
+        elif form == "mobility":
+            Y, Y1, Y2 = 1j * w * X, 1j * (X + w * X1), 1j * (2.0 * X1 + w * X2)
+        else:
+            Y, Y1, Y2 = -(w**2) * X, -(2.0 * w * X + w**2 * X1), -(2.0 * X + 4.0 * w * X1 + w**2 * X2)
+        return (np.abs(Y) ** 2, 2.0 * np.real(np.conj(Y) * Y1),
+                2.0 * (np.abs(Y1) ** 2 + np.real(np.conj(Y) * Y2)))
+
+    return slopes
+
+
 def blade_amplitudes(model: BladeModes, q: np.ndarray, form: str):
     """f ↦ |response| of each blade j at its own frequency f[j] (Hz): shapes (n_blades,) → (n_blades,)."""
     wr2 = model.omega**2

@@ -8,12 +8,14 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import ROMError
-from .model import FORMS, BladeModes, blade_amplitudes, engine_order_force, modal_forces, receptance
+from .model import FORMS, BladeModes, blade_amplitudes, blade_power_slopes, engine_order_force, modal_forces, receptance
 
 __all__ = ["ForcedResponse", "forced_response", "GOLDEN_ITERATIONS"]
 
-#: Golden-section steps of each peak's refinement: 0.618^31 · 2 Δf ≈ 2e-7 Δf.
+#: Golden-section steps of a peak's refinement where Newton's method fails: 0.618^31 · 2 Δf ≈ 2e-7 Δf.
 GOLDEN_ITERATIONS = 31
+#: Newton steps of a peak's refinement at most, and the relative step that ends them.
+NEWTON_ITERATIONS, NEWTON_TOL = 20, 1e-12
 _GOLD = (math.sqrt(5.0) - 1.0) / 2.0
 
 
@@ -91,14 +93,47 @@ def _sweep_grid(model: BladeModes, band: tuple[float, float], points_per_bandwid
 
 
 def _refine_peaks(model: BladeModes, q: np.ndarray, grid: np.ndarray, amp: np.ndarray, form: str):
-    """Golden-section maximisation of each blade's |X_j| between the grid neighbours of its grid maximum."""
+    """Each blade's |X_j| maximised between the grid neighbours of its grid maximum: Newton's method on d|X_j|²/dω
+    from the grid maximum; where it leaves that bracket, meets a convex stretch or ends below the grid's maximum
+    (two modes closer than two grid steps), a golden-section search of the bracket.
+
+    Why Newton first: the golden-section search took :data:`GOLDEN_ITERATIONS` evaluations per peak, 9.5 s of the
+    13.4 s of the bundled campaign's amplification factors with their intervals (8060 sweeps); Newton converges
+    in a few, each about three evaluations' work, from the grid maximum, which lies within a sixteenth of a
+    bandwidth of the peak (design §8.75)."""
     i = np.argmax(amp, axis=0)
     best_f = grid[i].copy()
     best_a = amp[i, np.arange(amp.shape[1])].copy()
     a = grid[np.maximum(i - 1, 0)]
     b = grid[np.minimum(i + 1, grid.size - 1)]
-
+    x, ok = _newton_peaks(blade_power_slopes(model, q, form), best_f.copy(), a, b)
     ev = blade_amplitudes(model, q, form)
+    fx = ev(x)
+    ok &= fx >= best_a
+    best_f, best_a = np.where(ok, x, best_f), np.where(ok, fx, best_a)
+    if not ok.all():  # the golden-section search for every blade (the evaluations take them all), kept where needed
+        ga, gf = _golden(ev, a, b, best_f, best_a)
+        best_f, best_a = np.where(ok, best_f, gf), np.where(ok, best_a, ga)
+    return best_a, best_f
+
+
+def _newton_peaks(slopes, x: np.ndarray, a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Newton's method on P' = d|Y|²/dω for every blade at once, from ``x`` (Hz); returns the points and which
+    converged (steps below :data:`NEWTON_TOL` relative, inside [a, b], P'' < 0 all the way)."""
+    ok = np.ones(x.size, bool)
+    for _ in range(NEWTON_ITERATIONS):
+        _, g, h = slopes(x)
+        ok &= h < 0
+        step = np.where(ok, -g / np.where(ok, h, -1.0), 0.0) / (2.0 * math.pi)
+        x = x + step
+        ok &= (x >= a) & (x <= b)
+        if np.all(~ok | (np.abs(step) <= NEWTON_TOL * np.abs(x))):
+            return x, ok
+    return x, ok & (np.abs(step) <= NEWTON_TOL * np.abs(x))
+
+
+def _golden(ev, a: np.ndarray, b: np.ndarray, best_f: np.ndarray, best_a: np.ndarray):
+    """Golden-section maximisation of ``ev`` over [a, b] per blade; the better of its result and (best_f, best_a)."""
     c, d = b - _GOLD * (b - a), a + _GOLD * (b - a)
     fc, fd = ev(c), ev(d)
     for _ in range(GOLDEN_ITERATIONS):

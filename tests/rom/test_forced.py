@@ -29,6 +29,7 @@ from rom.forced import (
     tuned_references,
     whitehead_limit,
 )
+from rom.forced.model import blade_power_slopes
 from rom.rom_assembly import measurement_labels
 
 K_GROUND = (2 * math.pi * 100.0) ** 2  # N/m on a 1 kg blade: 100 Hz alone
@@ -102,6 +103,71 @@ def test_each_blade_peak_matches_the_direct_solve_maximised(mistuned_chain):
         assert res.peak_hz[j] == pytest.approx(opt.x, abs=1e-5)  # the peak is flat: 1e-5 Hz ≪ 0.2–0.9 Hz bandwidths
     assert res.worst_blade == int(np.argmax(res.peaks)) + 1
     assert res.eo == eo and res.sweep_hz is None
+
+
+@pytest.mark.parametrize("form", ["receptance", "mobility", "accelerance"])
+def test_the_peak_slopes_are_the_derivatives_of_the_response_power(mistuned_chain, form):
+    """d|Y|²/dω and d²|Y|²/dω² of the Newton refinement against central differences of |Y|² from the modal sum."""
+    _, _, _, model = mistuned_chain
+    F = engine_order_force(model.n_blades, 1)
+    f = model.frequencies_hz[2] * (1 + np.linspace(-0.004, 0.004, model.n_blades))  # each blade its own frequency
+    _, g, h = blade_power_slopes(model, modal_forces(model, F), form)(f)
+    dw = 2 * math.pi * f * 1e-6
+
+    def power(x):
+        return np.abs(np.diagonal(receptance(model, F, x, form))) ** 2
+
+    p0, pp, pm = power(f), power(f + dw / (2 * math.pi)), power(f - dw / (2 * math.pi))
+    np.testing.assert_allclose(g, (pp - pm) / (2 * dw), rtol=1e-5, atol=1e-8 * np.abs(g).max())
+    np.testing.assert_allclose(h, (pp - 2 * p0 + pm) / dw**2, rtol=1e-3, atol=1e-5 * np.abs(h).max())
+
+
+@pytest.mark.parametrize("form", ["mobility", "accelerance"])
+def test_each_blade_peak_of_every_form_matches_a_bounded_maximisation(mistuned_chain, form):
+    """The refined peaks of the velocity and acceleration responses against scipy's bounded maximisation of the
+    same response (the modal sum, checked against the direct solve above), on a grid as fine as the sweep's."""
+    _, _, _, model = mistuned_chain
+    band = (0.97 * model.frequencies_hz.min(), 1.03 * model.frequencies_hz.max())
+    F = engine_order_force(model.n_blades, 1)
+    res = forced_response(model, 1, band, form=form)
+    grid = np.linspace(*band, 6001)
+    amp = np.abs(receptance(model, F, grid, form))
+    for j in range(model.n_blades):
+        i = int(np.argmax(amp[:, j]))
+        opt = minimize_scalar(lambda f, j=j: -abs(receptance(model, F, [f], form)[0, j]),
+                              bounds=(grid[max(i - 1, 0)], grid[min(i + 1, grid.size - 1)]),
+                              method="bounded", options={"xatol": 1e-9})
+        assert res.peaks[j] == pytest.approx(-opt.fun, rel=1e-9)
+
+
+def test_two_modes_closer_than_the_grid_step_give_the_bracket_s_maximum():
+    """Two modes 2e-4 apart (a tenth of the narrowest bandwidth) share one grid bracket: the peak found is the
+    bracket's maximum (scipy's bounded search of the modal sum) and never below the grid's."""
+    model = BladeModes(np.array([100.0, 100.02]), np.array([0.001, 0.001]), np.array([[1.0, 0.6], [0.3, -1.0]]))
+    res = forced_response(model, 0, (99.0, 101.0), keep_sweep=True)
+    F, g = engine_order_force(2, 0), res.sweep_hz
+    for j in range(2):
+        i = int(np.argmax(res.sweep_amplitude[:, j]))
+        opt = minimize_scalar(lambda f, j=j: -abs(receptance(model, F, [f])[0, j]),
+                              bounds=(g[max(i - 1, 0)], g[min(i + 1, g.size - 1)]), method="bounded",
+                              options={"xatol": 1e-10})
+        assert res.peaks[j] == pytest.approx(-opt.fun, rel=1e-9)
+        assert res.peaks[j] >= res.sweep_amplitude[i, j]
+
+
+def test_a_peak_beyond_the_band_falls_back_to_the_golden_section_at_the_edge(monkeypatch):
+    """Blade 1 sees mostly a resonance above the band: Newton's step leaves its last grid bracket, the golden-section
+    search runs and its peak is the response at the band's edge (it rises all the way there)."""
+    import rom.forced.sweep as sweep
+
+    calls = []
+    golden = sweep._golden
+    monkeypatch.setattr(sweep, "_golden", lambda *a: calls.append(1) or golden(*a))
+    model = BladeModes(np.array([97.0, 100.0]), np.array([0.002, 0.002]), np.array([[0.01, 1.0], [1.0, 0.01]]))
+    res = forced_response(model, 0, (95.0, 99.5))
+    edge = np.abs(receptance(model, engine_order_force(2, 0), [99.5]))[0, 0]
+    assert calls and res.peaks[0] == pytest.approx(edge, rel=1e-9)
+    assert res.peak_hz[0] == pytest.approx(99.5, rel=1e-6)
 
 
 @pytest.mark.parametrize("n", [6, 7])
