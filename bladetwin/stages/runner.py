@@ -293,7 +293,6 @@ class Runner:
         needed = {n.name for n in nodes}
         self.chain = pipeline.chain_lengths(needed)
         self.chain.update({n: 0 for n in self.fillers if not self._feeds(n, needed - self.fillers)})
-        self._filling = bool(self.fillers)
         self.consumers = {k: [c for c in v if c in needed] for k, v in pipeline.consumers().items()}
         for name, src in self.sources.items():
             key = src.key if src.key is not None else content_key(src.value)
@@ -332,7 +331,7 @@ class Runner:
         t0 = time.perf_counter()
         while True:
             self._assign_keys(nodes)
-            self._filling = self._filling and not all(self._available(t) for t in self.targets)
+            self._filling = bool(self.fillers) and not all(self._available(t) for t in self.targets)
             memo: dict = {}
             # a node whose twin (same function and key) is running waits for it, then reads its entry
             ready = sorted((n for n in nodes if self._demanded(n.name, memo)
