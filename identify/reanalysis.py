@@ -95,6 +95,9 @@ class RitzModel:
         ``"krylov"`` or ``"eigh"``: how the Ritz basis was made.
     n_basis : int
         Size of that Ritz basis.
+    basis_rows : ndarray, shape (n_rows, s), or None
+        The rows ``rows`` of :func:`ritz_model` of the M-orthonormal basis Z: a mode's entries there are
+        ``basis_rows @ w`` for its coordinates w (:attr:`RitzSolution.coords`).
     """
 
     H0: np.ndarray
@@ -111,6 +114,7 @@ class RitzModel:
     bound0: np.ndarray
     method: str
     n_basis: int
+    basis_rows: np.ndarray | None = None
 
     @property
     def s(self) -> int:
@@ -136,11 +140,15 @@ class RitzSolution:
     bound : ndarray, shape (n_samples, n_cand)
         Upper bound on each frequency's relative error against the exact ROM eigenvalue (``inf`` where the
         shifted stiffness of that δ is not positive definite).
+    coords : ndarray, shape (n_samples, s, n_cand), or None
+        Each mode's coordinates w in the model's basis (unit norm: the mode is M-normalised), with
+        ``coords=True`` of :func:`solve_ritz`.
     """
 
     frequencies_hz: np.ndarray
     mac0: np.ndarray
     bound: np.ndarray
+    coords: np.ndarray | None = None
 
 
 def frequency_error_bound(res_norm: np.ndarray, lam: np.ndarray, sigma: float, gamma: np.ndarray) -> np.ndarray:
@@ -240,11 +248,12 @@ def _eigh_basis(K: np.ndarray, M: np.ndarray) -> tuple[np.ndarray, ...]:
     return theta, Y, K @ Y, M @ Y
 
 
-def _project(Uf, E, idx, theta, Y, KY, MY, n_low: int, n_top: int, n_poles: int):
+def _project(Uf, E, idx, theta, Y, KY, MY, n_low: int, n_top: int, n_poles: int, rows):
     """Steps 2–3 of the module docstring: the low Ritz vectors kept, the far ones compressed to pole blocks.
 
     ``n_top`` is the number of Ritz values up to the last wanted mode (rigid ones included). Returns the
-    projected stiffness ``H0`` (s, s), the update rows ``U`` (s, k), the residual factor ``R`` and ``S½``.
+    projected stiffness ``H0`` (s, s), the update rows ``U`` (s, k), the residual factor ``R``, ``S½`` and
+    the basis' ``rows`` (None when not asked).
     """
     Ur = Y[idx, :].T  # (r, k)
     # Pole blocks of the far Ritz vectors, poles spread over [0, 1.1 λ_max] of the wanted band.
@@ -270,29 +279,14 @@ def _project(Uf, E, idx, theta, Y, KY, MY, n_low: int, n_top: int, n_poles: int)
     S = CE[idx]
     ev, evec = np.linalg.eigh(0.5 * (S + S.T))
     S_half = (evec * np.sqrt(np.clip(ev, 0.0, None))) @ evec.T
-    return H0, Uz, R, S_half
+    Zr = None if rows is None else np.hstack([Y[rows, :n_low], Y[rows][:, F] @ QF])
+    return H0, Uz, R, S_half, Zr
 
 
-def ritz_model(
-    K: np.ndarray,
-    M: np.ndarray,
-    update_index,
-    omega2,
-    n_cand: int,
-    *,
-    method: str = "auto",
-    shift_hz: float = 100.0,
-    block: int = 24,
-    min_blocks: int = 4,
-    max_blocks: int = 10,
-    basis_tol: float = 1e-6,
-    n_check: int | None = None,
-    n_buffer: int = 6,
-    n_poles: int = 3,
-    max_rigid: int = 6,
-    rigid_hz: float = 1.0,
-    seed: int = 0,
-) -> RitzModel:
+def ritz_model(K: np.ndarray, M: np.ndarray, update_index, omega2, n_cand: int, *, method: str = "auto",
+               shift_hz: float = 100.0, block: int = 24, min_blocks: int = 4, max_blocks: int = 10,
+               basis_tol: float = 1e-6, n_check: int | None = None, n_buffer: int = 6, n_poles: int = 3,
+               max_rigid: int = 6, rigid_hz: float = 1.0, seed: int = 0, rows=None) -> RitzModel:
     """Build the δ-parametric reduced model of one pencil (module docstring, steps 1–3).
 
     Parameters
@@ -325,6 +319,8 @@ def ritz_model(
         :func:`rom.modal.dense_modes`).
     seed : int
         Seed of the random start columns.
+    rows : array_like of int, optional
+        ROM coordinates whose entries of every mode the caller needs (:attr:`RitzModel.basis_rows`).
 
     Returns
     -------
@@ -346,16 +342,18 @@ def ritz_model(
         if n_low + 1 > r:
             raise ValueError(f"the Ritz basis ({r} vectors) is too small for {n_cand} modes and {n_buffer} spare")
         n_rigid = int(((theta < rigid_lam) & (np.arange(r) < max_rigid)).sum())
-        H0, Uz, R, S_half = _project(Uf, E, idx, theta, Y, KY, MY, n_low, n_rigid + n_cand, n_poles)
+        rows = None if rows is None else np.asarray(rows, np.int64).ravel()
+        H0, Uz, R, S_half, Zr = _project(Uf, E, idx, theta, Y, KY, MY, n_low, n_rigid + n_cand, n_poles, rows)
     s, cand = H0.shape[0], slice(n_rigid, n_rigid + n_cand)
     res0 = np.linalg.norm(R[:, :s][:, cand] - R[:, s : 2 * s][:, cand] * theta[cand], axis=0)
     bound0 = frequency_error_bound(res0, theta[cand], sigma, np.zeros(()))
     return RitzModel(H0=H0, U=Uz, omega2=w2, R=R, S_half=S_half, sigma=sigma, n_rigid=n_rigid, n_low=n_low,
                      n_cand=n_cand, shapes0=np.ascontiguousarray(Y[:, cand]),
-                     mass_shapes0=np.ascontiguousarray(MY[:, cand]), bound0=bound0, method=method, n_basis=r)
+                     mass_shapes0=np.ascontiguousarray(MY[:, cand]), bound0=bound0, method=method, n_basis=r,
+                     basis_rows=Zr)
 
 
-def solve_ritz(model: RitzModel, deltas) -> RitzSolution:
+def solve_ritz(model: RitzModel, deltas, *, coords: bool = False) -> RitzSolution:
     """Elastic modes of ``model`` for each δ row (one batched ``eigh`` of s × s matrices).
 
     Parameters
@@ -363,6 +361,8 @@ def solve_ritz(model: RitzModel, deltas) -> RitzSolution:
     model : RitzModel
     deltas : array_like, shape (n_samples, k)
         Relative blade mistuning of the updated modes (Eq. 19; 0.01 = 1 %).
+    coords : bool
+        Also return each mode's coordinates (:attr:`RitzSolution.coords`).
 
     Returns
     -------
@@ -388,4 +388,4 @@ def solve_ritz(model: RitzModel, deltas) -> RitzSolution:
     mac0 = W[:, nr : nr + nc, :] ** 2  # the δ = 0 modes are unit z coordinates nr..nr+nc−1
     if s < nr + nc:  # pragma: no cover - ritz_model keeps n_low ≥ nr + nc
         raise AssertionError("Ritz model smaller than its candidates")
-    return RitzSolution(np.sqrt(np.clip(lam, 0.0, None)) / (2 * math.pi), mac0, bound)
+    return RitzSolution(np.sqrt(np.clip(lam, 0.0, None)) / (2 * math.pi), mac0, bound, W if coords else None)

@@ -11,8 +11,9 @@ The updated ROM adds, per blade ``j``, an in-situ correction ``ε_j`` of its fre
 measures 10 tracked modes, which fix that blade's ε on the modes the blade dominates. The filmed joints,
 whose patterns are known, also fix the contact stiffness through the disk-dominated modes.
 
-* :func:`tracked_sensitivity` — the tracked frequencies and ``∂ ln f_k / ∂ δ_i`` (analytic: an eigenvalue's
-  derivative with respect to a diagonal stiffness entry is ``φ_k,i²`` for mass-normalised modes);
+* :func:`tracked_sensitivity` (from :mod:`identify.d1b_solve`, which also holds the fits' reduced-basis solve) —
+  the tracked frequencies and ``∂ ln f_k / ∂ δ_i`` (analytic: an eigenvalue's derivative with respect to a
+  diagonal stiffness entry is ``φ_k,i²`` for mass-normalised modes);
 * :func:`fit_corrections` — one blade's ε by regularised Gauss–Newton (prior: Eq. 19, ε = 0);
 * :func:`fit_contact_stiffness` — ``k_n``, ``k_t`` with the filmed blades' ε, jointly (Levenberg–Marquardt);
 * :mod:`identify.in_situ` — which corrections to trust, and the one-line warnings on data the calibration
@@ -27,17 +28,16 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from ema.mac import mac
 from rom.contact import ContactPattern
 from rom.contact_stiffness import ContactStiffness, interface_compliance, with_contact_stiffness
-from rom.modal import dense_modes, single_thread_blas
 
+from .d1b_solve import eps_model, tracked_sensitivity, tuned_pencil
 from .errors import IdentifyError
-from .tracking import ModeTracker, assign_modes, common_coords, d1b_pencil
+from .tracking import ModeTracker
 
 __all__ = ["ROM_ERROR", "PRIOR_STD", "STOP_SHARE", "DISAGREE_BOUND", "BLADE_SHARE_MIN", "InSituFit", "StiffnessFit",
-           "UpdatedROM", "tracked_sensitivity", "calibrated_modes", "fit_corrections", "fit_contact_stiffness",
-           "start_stiffness", "noise_floor"]
+           "UpdatedROM", "tracked_sensitivity", "calibrated_modes", "fit_corrections",
+           "fit_contact_stiffness", "start_stiffness", "noise_floor"]
 
 #: Prior standard deviation of an in-situ correction ε (relative eigenvalue). Wide on purpose: a blade mode
 #: that a disk–one-blade test sees is set by the test; one that no tracked mode sees stays at Eq. 19.
@@ -154,40 +154,6 @@ def noise_floor(ema_std_rel: np.ndarray) -> np.ndarray:
     return np.sqrt(s**2 + ROM_ERROR**2)
 
 
-def tracked_sensitivity(tracker: ModeTracker, pattern: ContactPattern, delta) -> tuple[np.ndarray, np.ndarray]:
-    """Tracked d1b frequencies and their sensitivities to the blade's eigenvalue factors (Eq. 19).
-
-    Parameters
-    ----------
-    tracker : ModeTracker
-        Its ``blade`` is the model solved (rigid ties or on springs).
-    pattern : ContactPattern
-    delta : ndarray, shape (m,)
-        The blade's δ (+ ε), relative.
-
-    Returns
-    -------
-    frequencies_hz : ndarray, shape (n_tracked,)
-    jacobian : ndarray, shape (n_tracked, m)
-        ``∂ ln f_k / ∂ δ_i = ω_i² φ_k,i² / (2 λ_k)`` with φ_k mass-normalised and ``i`` the blade's i-th
-        free-interface coordinate (the stiffness's only δ-dependent entry, Eq. 19).
-    """
-    K, M = d1b_pencil(tracker.disk, tracker.blade, pattern.L, pattern.R, formulation=tracker.formulation,
-                      delta=delta)
-    with single_thread_blas():
-        dm = dense_modes(K, M, tracker.n_modes + tracker.n_extra, max_rigid=6)
-        common = common_coords(K.shape[0], tracker.disk, tracker.blade)
-        cols, _ = assign_modes(mac(tracker.shapes, dm.shapes[common], weight=tracker.weight))
-    f = np.asarray(dm.frequencies_hz[cols], np.float64)
-    phi = dm.shapes[:, cols]
-    phi = phi / np.sqrt(np.einsum("ik,ik->k", phi, M @ phi))
-    blade = tracker.blade
-    first = tracker.disk.n + blade.n_r  # the d1b assembly puts the disk's coordinates, then η_r, then η_f
-    lam = (2 * np.pi * f) ** 2
-    jac = 0.5 * phi[first:first + blade.m].T ** 2 * blade.omega2_tuned[None, :] / lam[:, None]
-    return f, jac
-
-
 def _gn_step(r: np.ndarray, jac: np.ndarray, sigma: np.ndarray, eps: np.ndarray, prior_std: float) -> np.ndarray:
     """The regularised Gauss–Newton step on ε: min ‖(r − J Δ)/σ‖² + ‖(ε + Δ)/τ‖²."""
     Jw = jac / sigma[:, None]
@@ -244,14 +210,19 @@ def fit_corrections(tracker: ModeTracker, pattern: ContactPattern, delta: np.nda
     use = np.isfinite(y) & (y > 0)
     fixed = np.zeros(delta.size, bool) if held is None else np.isfinite(held)
     eps = np.where(fixed, held if held is not None else 0.0, 0.0)
-    f, jac = tracked_sensitivity(tracker, pattern, delta + eps)
+    pencil = tuned_pencil(tracker, pattern)
+    f, jac = tracked_sensitivity(tracker, pattern, delta + eps, pencil=pencil)
     free = calibrated_modes(jac)
     free = free[~fixed[free]]
-    for _ in range(n_iter if use.any() and free.size else 0):
+    n_steps = n_iter if use.any() and free.size else 0
+    # The steps move ε on ``free`` only: one Ritz model serves them all (identify.d1b_solve).
+    model = eps_model(tracker, pencil, delta + eps, free) if n_steps else None
+    for _ in range(n_steps):
         step = _gn_step(np.log(y[use] / f[use]), jac[np.ix_(use, free)], np.asarray(sigma_rel)[use], eps[free],
                         prior_std)
         eps[free] = np.maximum(eps[free] + step, -0.5 - delta[free])  # keeps (1 + δ + ε) ω² positive
-        f, jac = tracked_sensitivity(tracker, pattern, delta + eps)
+        got = None if model is None else model.sensitivity(tracker, delta + eps)
+        f, jac = got if got is not None else tracked_sensitivity(tracker, pattern, delta + eps, pencil=pencil)
     return InSituFit(eps, f, y, 2 * jac.sum(axis=1), np.argmax(jac, axis=1))
 
 

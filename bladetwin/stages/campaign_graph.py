@@ -328,7 +328,7 @@ def _update_nodes(p: Pipeline, campaign, opts: RunOptions) -> list[str]:
            "delta_all": names.DELTA_ALL, "bd": names.FE_MODEL}
     d1b = _ema_of(campaign, "d1b")
     p.add(Node(names.ROM_UPDATE_STIFFNESS, rom_update.stiffness_node, {**rom, "known": names.KNOWN, **d1b},
-               label="contact stiffness fitted"))
+               label="contact stiffness fitted", version=2))  # 2: δ on the tuned pencil (design §8.76)
     inputs = identify_inputs(campaign, opts)
     sets = {"answer": _answer(opts, "experimental")}
     if "numerical" in inputs:
@@ -341,7 +341,7 @@ def _update_nodes(p: Pipeline, campaign, opts: RunOptions) -> list[str]:
         p.add(Node(names.rom_update(name), rom_update.update_node,
                    {**rom, "stiffness": names.ROM_UPDATE_STIFFNESS, "patterns": pats, **d1b},
                    {"warn": name == "answer"}, label=f"in-situ corrections ({what} patterns)",
-                   version=6))  # 3: joint's pattern first; 4: none on a mode calibrated otherwise; 5, 6: §8.53
+                   version=7))  # 3: joint pattern first; 4: none on a mode calibrated otherwise; 5, 6: §8.53; 7: §8.76
     solves = {"updated": (_answer(opts, "experimental"), "answer")}
     if "reference" in sets:
         solves["updated_reference"] = (names.REFERENCE, "reference")

@@ -8,7 +8,10 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
+import scipy.linalg as sla
 
+import identify.d1b_solve as d1b_solve
+from identify.d1b_solve import eps_model, tuned_pencil
 from identify.errors import IdentifyError
 from identify.in_situ import calibration_warnings, held_at_common, population_centre, unobserved_modes
 from identify.rom_update import (
@@ -19,7 +22,7 @@ from identify.rom_update import (
     noise_floor,
     tracked_sensitivity,
 )
-from identify.tracking import ModeTracker
+from identify.tracking import ModeTracker, d1b_pencil
 from rom.contact import ContactPattern
 from rom.contact_stiffness import ContactStiffness, blade_compliance_parts, interface_compliance, with_contact_stiffness
 from tests.rom import rom_models
@@ -55,6 +58,57 @@ def test_sensitivities_match_finite_differences(setup):
         fd = np.log(tracked_sensitivity(tracker, pats[1], up)[0] / tracked_sensitivity(tracker, pats[1], down)[0])
         np.testing.assert_allclose(jac[:, i], fd / (2 * h), rtol=1e-3, atol=1e-4)
     assert np.all(2 * jac.sum(axis=1) <= 1 + 1e-9)  # a share of the mode's stiffness
+
+
+def test_a_reused_tuned_pencil_gives_the_directly_assembled_mistuned_modes(setup):
+    """δ on the tuned pencil's diagonal (what fits over ε reuse) against the blade assembled with δ (Eq. 19)."""
+    _, tracker, parts, pats = setup
+    sprung = replace(tracker, blade=with_contact_stiffness(tracker.blade, interface_compliance(parts, TRUE_K)))
+    delta = np.random.default_rng(3).normal(0.0, 0.03, tracker.blade.m)
+    for t in (tracker, sprung):
+        f, _ = tracked_sensitivity(t, pats[2], delta, pencil=tuned_pencil(t, pats[2]))
+        K, M = d1b_pencil(t.disk, t.blade, pats[2].L, pats[2].R, formulation=t.formulation, delta=delta)
+        lam = sla.eigh(K, M, eigvals_only=True)
+        direct = np.sqrt(np.clip(lam, 0, None)) / (2 * np.pi)
+        nearest = direct[np.argmin(np.abs(direct[:, None] - f[None, :]), axis=0)]
+        np.testing.assert_allclose(f, nearest, rtol=1e-7)  # the Lanczos solver's residual tolerance
+        assert not np.allclose(f, tracked_sensitivity(t, pats[2], np.zeros_like(delta))[0], rtol=1e-4)
+
+
+def test_the_fits_ritz_model_matches_direct_solves_and_answers_none_past_its_bound(setup, monkeypatch):
+    """The reduced-basis solve of a fit over ε (identify.d1b_solve) against direct solves, on a sprung blade."""
+    _, tracker, parts, pats = setup
+    t = replace(tracker, blade=with_contact_stiffness(tracker.blade, interface_compliance(parts, TRUE_K)))
+    rng = np.random.default_rng(5)
+    delta0, free = rng.normal(0.0, 0.02, t.blade.m), np.array([0, 1, 3])
+    pencil = tuned_pencil(t, pats[1])
+    model = eps_model(t, pencil, delta0, free)
+    for _ in range(3):
+        delta = delta0.copy()
+        delta[free] += rng.normal(0.0, 0.05, free.size)
+        f, jac = model.sensitivity(t, delta)
+        f_direct, jac_direct = tracked_sensitivity(t, pats[1], delta)
+        np.testing.assert_allclose(f, f_direct, rtol=d1b_solve.RITZ_TOL)
+        np.testing.assert_allclose(jac, jac_direct, atol=1e-6)
+    with pytest.raises(ValueError, match=r"outside the model's \[0, 1, 3\]"):
+        model.sensitivity(t, delta0 + 0.01)
+    monkeypatch.setattr(d1b_solve, "RITZ_TOL", 0.0)
+    assert model.sensitivity(t, delta0) is None
+
+
+def test_a_fit_over_eps_gives_the_same_corrections_with_and_without_the_ritz_model(setup, monkeypatch):
+    _, tracker, parts, pats = setup
+    m = tracker.blade.m
+    delta, eps = np.r_[0.01, -0.02, np.zeros(m - 2)], np.r_[0.03, 0.0, -0.02, np.zeros(m - 3)]
+    y = _truth(tracker, parts, pats[2], delta, eps, stiffness=TRUE_K)
+    t = replace(tracker, blade=with_contact_stiffness(tracker.blade, interface_compliance(parts, TRUE_K)))
+    sigma = noise_floor(np.full(y.size, np.nan))
+    fast = fit_corrections(t, pats[2], delta, y, sigma)
+    monkeypatch.setattr("identify.rom_update.eps_model", lambda *a: None)
+    direct = fit_corrections(t, pats[2], delta, y, sigma)
+    np.testing.assert_allclose(fast.correction, direct.correction, atol=1e-6)
+    np.testing.assert_allclose(fast.frequencies_hz, direct.frequencies_hz, rtol=1e-6)
+    np.testing.assert_allclose(fast.blade_share, direct.blade_share, atol=1e-6)
 
 
 def test_in_situ_corrections_are_recovered(setup):
