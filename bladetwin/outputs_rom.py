@@ -104,7 +104,10 @@ def rom_section(res: RunResult, out: Path, rom: dict | None) -> list[dict]:
              f"k_n = {k['normal_n_per_m3']:.3g} N/m³, k_t = {k['tangential_n_per_m3']:.3g} N/m³ (fitted on joints "
              f"{', '.join(str(j) for j in k['fitted_on_joints'])}; the data resolve ln k to ±"
              f"{max(k['log_std']):.2f}, an effective stiffness of this ROM: its own model error is absorbed into "
-             "it, so the true joint's may lie further off)")
+             "it, so the true joint's may lie further off"
+             + ("" if k.get("settled", True) else
+                f"; the fit stopped at its limit of {k['iterations']} iterations before it settled, on a valley where "
+                "k_n and the blades' corrections trade, so it would have moved further") + ")")
     r = p["d1b_rms_residual_pct"]
     text = ["The paper's ROM carries each blade's free-test deltas into the assembly (Eq. 19) and ties contacting "
             "nodes rigidly. The updated ROM (beyond the paper, docs/equations.md) adds per-blade in-situ corrections "

@@ -35,7 +35,7 @@ def _parameters(res) -> dict:
         stiff = {"normal_n_per_m3": fit.stiffness.normal_n_per_m3,
                  "tangential_n_per_m3": fit.stiffness.tangential_n_per_m3,
                  "log_std": [float(v) for v in fit.log_std], "fitted_on_joints": [int(j) for j in fit.joints],
-                 "iterations": int(fit.n_iter)}
+                 "iterations": int(fit.n_iter), "settled": bool(fit.settled)}
     freq = upd.frequency_correction_pct(res.delta_all)
     blades = []
     for b in range(upd.corrections.shape[0]):

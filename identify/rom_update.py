@@ -103,6 +103,10 @@ class StiffnessFit:
     n_iter : int
     rms_residual_pct : float
         RMS of the tracked modes' residuals over the filmed joints at the optimum (%).
+    settled : bool
+        Whether the fit stopped by its own rule (steps below the data's resolution, or no step that lowers the
+        cost), not at ``max_iter``: on a valley where k_n and the blades' ε trade, where it stops depends on
+        ``max_iter`` (docs/design.md §8.42, §8.77).
     """
 
     stiffness: ContactStiffness
@@ -111,6 +115,7 @@ class StiffnessFit:
     log_std: np.ndarray
     n_iter: int
     rms_residual_pct: float
+    settled: bool = True
 
 
 @dataclass(frozen=True, eq=False)
@@ -275,7 +280,7 @@ def fit_contact_stiffness(tracker: ModeTracker, compliance_unit: np.ndarray, joi
     eps = {j: np.zeros(tracker.blade.m) for j in problem.keys}
     cost, parts = problem.evaluate(log_k, eps)
     problem.free = {j: calibrated_modes(parts[j][1]) for j in problem.keys}
-    lm, it = 1e-2, 0
+    lm, it, settled = 1e-2, 0, False
     held = np.zeros(2, bool)
     for it in range(1, max_iter + 1):
         A, b = problem.normal_equations(log_k, eps, parts, held)
@@ -289,19 +294,21 @@ def fit_contact_stiffness(tracker: ModeTracker, compliance_unit: np.ndarray, joi
                 break
             lm *= 10
         if new_cost > cost:
+            settled = True
             break
         log_k, eps, cost, parts, lm = new_k, new_eps, new_cost, new_parts, max(lm / 10, 1e-6)
         if progress is not None:
             progress(f"contact stiffness, iteration {it}: k_n = {np.exp(log_k[0]):.3g}, "
                      f"k_t = {np.exp(log_k[1]):.3g} N/m³")
         if np.all(held | (np.abs(step[:2]) < STOP_SHARE * np.sqrt(np.diag(np.linalg.inv(A))[:2]))):
+            settled = True
             break
     A, _ = problem.normal_equations(log_k, eps, parts, held)
     cov = np.linalg.inv(A)
     res = np.concatenate([p[3] for p in parts.values()]) * 100
     return StiffnessFit(ContactStiffness(float(np.exp(log_k[0])), float(np.exp(log_k[1]))),
                         np.array(problem.keys, np.int64), np.array([eps[j] for j in problem.keys]),
-                        np.sqrt(np.diag(cov)[:2]), it, float(np.sqrt(np.mean(res**2))))
+                        np.sqrt(np.diag(cov)[:2]), it, float(np.sqrt(np.mean(res**2))), settled)
 
 
 def _prior_dominated(A: np.ndarray, log_prior_std: float) -> np.ndarray:

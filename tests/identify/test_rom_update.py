@@ -142,6 +142,9 @@ def test_contact_stiffness_and_corrections_are_recovered_jointly(setup):
     assert fit.stiffness.tangential_n_per_m3 == pytest.approx(TRUE_K.tangential_n_per_m3, rel=0.1)
     assert fit.corrections[1, 0] == pytest.approx(0.02, abs=2e-3)
     assert fit.rms_residual_pct < 0.01
+    assert fit.settled and fit.n_iter < 12
+    cut = fit_contact_stiffness(tracker, parts, joints, max_iter=1)  # stopped at its limit
+    assert not cut.settled and cut.n_iter == 1
     with pytest.raises(IdentifyError, match="at least one filmed joint"):
         fit_contact_stiffness(tracker, parts, {})
 
@@ -165,7 +168,7 @@ def test_a_stiffness_the_tests_cannot_see_is_held_and_the_fit_stops(setup):
     assert fit.stiffness.normal_n_per_m3 == pytest.approx(TRUE_K.normal_n_per_m3, rel=0.35)
     assert fit.stiffness.tangential_n_per_m3 > 30 * TRUE_K.normal_n_per_m3
     assert fit.log_std[1] == pytest.approx(np.log(1e3), rel=1e-6)  # the prior's: held, the data add nothing
-    assert fit.n_iter < 30
+    assert fit.n_iter < 30 and fit.settled
 
 
 def test_unusable_calibration_data_is_named_by_blade_and_mode():

@@ -353,6 +353,8 @@ def test_updated_rom_beats_the_papers_on_the_measured_assembly(cold):
     assert p["d1b_rms_residual_pct"]["updated"] < 0.5 * p["d1b_rms_residual_pct"]["paper"]
     k = p["contact_stiffness"]
     assert k["fitted_on_joints"] == s["known_joints"] and k["normal_n_per_m3"] > 0
+    text = " ".join(next(x for x in s["sections"] if x["id"] == "rom_update")["text"])
+    assert ("stopped at its limit" in text) == (not k["settled"])  # the report says when the fit did not settle
     assert all(b["calibrated"] and b["free_modes"] for b in p["blades"])
     assert {f["file"] for f in next(x for x in s["sections"] if x["id"] == "rom_update")["tables"]} == {
         "rom_cases.csv", "rom_corrections.csv", "rom_families.csv"}
