@@ -9,6 +9,7 @@ import numpy as np
 import ema
 from ema.numbering import rom_modal_model
 from identify.plots import plot_mode_comparison
+from identify.rom_update import LOG_PRIOR_STD
 
 from .output_files import save_figure, write_csv
 from .rom_summary import CASE_HEADER, CORRECTION_HEADER, FAMILY_HEADER, case_rows, correction_rows, family_rows
@@ -100,14 +101,7 @@ def rom_section(res: RunResult, out: Path, rom: dict | None) -> list[dict]:
                "figure": fig}]
     p = rom["updated"]["parameters"]
     k = p["contact_stiffness"]
-    stiff = ("rigid ties (no filmed joint with a disk-one-blade test)" if k is None else
-             f"k_n = {k['normal_n_per_m3']:.3g} N/m³, k_t = {k['tangential_n_per_m3']:.3g} N/m³ (fitted on joints "
-             f"{', '.join(str(j) for j in k['fitted_on_joints'])}; the data resolve ln k to ±"
-             f"{max(k['log_std']):.2f}, an effective stiffness of this ROM: its own model error is absorbed into "
-             "it, so the true joint's may lie further off"
-             + ("" if k.get("settled", True) else
-                f"; the fit stopped at its limit of {k['iterations']} iterations before it settled, on a valley where "
-                "k_n and the blades' corrections trade, so it would have moved further") + ")")
+    stiff = "rigid ties (no filmed joint with a disk-one-blade test)" if k is None else _stiffness_text(k)
     r = p["d1b_rms_residual_pct"]
     text = ["The paper's ROM carries each blade's free-test deltas into the assembly (Eq. 19) and ties contacting "
             "nodes rigidly. The updated ROM (beyond the paper, docs/equations.md) adds per-blade in-situ corrections "
@@ -125,3 +119,20 @@ def rom_section(res: RunResult, out: Path, rom: dict | None) -> list[dict]:
              "figures": [{"file": fig, "caption": "Left: in-situ corrections. Right: each measured mode family's "
                                                   "subspace correlation with the ROM's modes in its band."}],
              "tables": tables}]
+
+
+def _stiffness_text(k: dict) -> str:
+    """The fitted contact stiffness in words: each value with what the data resolve of it, and what it is."""
+    def one(name: str, value: float, log_std: float) -> str:
+        seen = ("its prior's: the tests do not see it" if log_std >= 0.99 * LOG_PRIOR_STD else
+                "what the data resolve")
+        return f"{name} = {value:.3g} N/m³ (±{log_std:.2f} in ln k, {seen})"
+
+    text = (f"{one('k_n', k['normal_n_per_m3'], k['log_std'][0])}, "
+            f"{one('k_t', k['tangential_n_per_m3'], k['log_std'][1])}, fitted on joints "
+            f"{', '.join(str(j) for j in k['fitted_on_joints'])}. It is an effective stiffness of this ROM: the "
+            "model's own error is absorbed into it, so the true joints' may lie far off")
+    if not k.get("settled", True):
+        text += (f"; the fit stopped at its limit of {k['iterations']} iterations before it settled, on a valley "
+                 "where k_n and the blades' corrections trade, so it would have moved further")
+    return text

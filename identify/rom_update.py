@@ -35,8 +35,8 @@ from .d1b_solve import eps_model, tracked_sensitivity, tuned_pencil
 from .errors import IdentifyError
 from .tracking import ModeTracker
 
-__all__ = ["ROM_ERROR", "PRIOR_STD", "STOP_SHARE", "DISAGREE_BOUND", "BLADE_SHARE_MIN", "InSituFit", "StiffnessFit",
-           "UpdatedROM", "tracked_sensitivity", "calibrated_modes", "fit_corrections",
+__all__ = ["ROM_ERROR", "PRIOR_STD", "LOG_PRIOR_STD", "STOP_SHARE", "DISAGREE_BOUND", "BLADE_SHARE_MIN", "InSituFit",
+           "StiffnessFit", "UpdatedROM", "tracked_sensitivity", "calibrated_modes", "fit_corrections",
            "fit_contact_stiffness", "start_stiffness", "noise_floor"]
 
 #: Prior standard deviation of an in-situ correction ε (relative eigenvalue). Wide on purpose: a blade mode
@@ -53,6 +53,8 @@ BLADE_SHARE_MIN = 0.5
 #: about 0.01 % on the academic disk (docs/rom.md). No update should fit the data closer than this.
 ROM_ERROR = 1e-4
 _LOG_K_STEP = 0.05  # finite-difference step on ln k (5 %)
+#: Std of the stiffness fit's Gaussian prior on ln k around its start: a factor 1000, wide on purpose.
+LOG_PRIOR_STD = float(np.log(1e3))
 #: The stiffness fit stops when a step moves ln k by less than this share of its standard deviation.
 STOP_SHARE = 0.01
 
@@ -243,7 +245,7 @@ def start_stiffness(tracker: ModeTracker, compliance_unit: np.ndarray) -> float:
 
 
 def fit_contact_stiffness(tracker: ModeTracker, compliance_unit: np.ndarray, joints: dict, *,
-                          prior_std: float = PRIOR_STD, max_iter: int = 12, log_prior_std: float = np.log(1e3),
+                          prior_std: float = PRIOR_STD, max_iter: int = 12, log_prior_std: float = LOG_PRIOR_STD,
                           progress=None) -> StiffnessFit:
     """Contact stiffness (k_n, k_t) and the filmed blades' ε, jointly, by Levenberg–Marquardt.
 
