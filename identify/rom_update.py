@@ -194,7 +194,9 @@ def fit_corrections(tracker: ModeTracker, pattern: ContactPattern, delta: np.nda
                     held: np.ndarray | None = None) -> InSituFit:
     """One blade's in-situ correction ε from its disk–one-blade test (regularised Gauss–Newton in ln f).
 
-    Only :func:`calibrated_modes` are corrected; the others keep ε = 0.
+    Only :func:`calibrated_modes` are corrected; the others keep ε = 0. The first solve is direct; the steps
+    after it solve a Ritz model over the corrected modes (:func:`identify.d1b_solve.eps_model`), directly where
+    its bound on a tracked frequency exceeds :data:`identify.d1b_solve.RITZ_TOL`.
 
     Parameters
     ----------
