@@ -109,7 +109,8 @@ class Campaign:
     films : tuple of FilmEntry
     masses : dict
         The optional ``[masses]`` table (kg): ``disk_kg`` (float) and ``blade_kg`` (one float for the mean
-        blade, or one per blade), the components weighed for the calibration of ρ (paper §5).
+        blade, or one per blade), the components weighed for the calibration of ρ (paper §5); and
+        ``slot_hardware_kg``, what holds each mounted blade (its bolts), which the model then carries.
     """
 
     root: Path
@@ -339,7 +340,7 @@ def _read_masses(doc: dict, path: Path, n_blades: int) -> dict:
     masses = doc.get("masses", {})
     where = f"{path} [masses]"
     if not isinstance(masses, dict):
-        raise CampaignError(f"{where}: expected a table with disk_kg and/or blade_kg")
+        raise CampaignError(f"{where}: expected a table with disk_kg, blade_kg and/or slot_hardware_kg")
     check_keys(masses, MASS_KEYS, where)
     if (msg := mass_message(masses, where, n_blades)) is not None:
         raise CampaignError(msg)

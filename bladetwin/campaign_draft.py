@@ -144,7 +144,8 @@ def _model_table() -> list[str]:
                        "\"fe/model.toml\"; docs/campaign.md, \"The model\")"),
             _line("family", FILL_IN), "",
             *_comments("[masses] (optional; calibrates ρ, docs/campaign.md): disk_kg = the disk's mass, blade_kg = "
-                       "one mass per blade (kg)")]
+                       "one mass per blade (kg); slot_hardware_kg = the bolts that hold one blade (kg), put in the "
+                       "model")]
 
 
 def _test_block(t: TestGuess) -> list[str]:

@@ -22,7 +22,7 @@ TOP_KEYS = ("campaign", "model", "tests", "films", "masses")
 CAMPAIGN_KEYS = ("name", "kind", "n_blades", "grid", "known_joints", "frf_units", "generated_by", "orientation",
                  "description")
 #: ``[masses]``: the weighed components (kg), for the calibration of ρ.
-MASS_KEYS = ("disk_kg", "blade_kg")
+MASS_KEYS = ("disk_kg", "blade_kg", "slot_hardware_kg")
 #: ``[[tests]]``: one UFF file each.
 TEST_KEYS = ("type", "file", "blade", "joint", "max_order", "picks", "units", "check_numbering")
 #: ``[[films]]``: one scan each, with its film metadata (``identify.film.FilmGeometry``, ``lab.films.FilmMeta``
@@ -84,6 +84,10 @@ def mass_message(masses: dict, where: str, n_blades: int) -> str | None:
                                                       and all(map(_positive, blade)))):
         return (f"{where}: blade_kg = {blade!r}, expected the mean blade mass in kg (> 0) or one mass per blade "
                 f"({n_blades})")
+    hw = masses.get("slot_hardware_kg")
+    if hw is not None and not (_number(hw) and math.isfinite(hw) and hw >= 0):
+        return (f"{where}: slot_hardware_kg = {hw!r}, expected the mass in kg (≥ 0) of the hardware that holds each "
+                "blade on the disk (its bolts)")
     return None
 
 

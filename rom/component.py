@@ -115,6 +115,22 @@ class Component:
         u[0::3] = 1.0
         return float(u @ (self.M @ u))
 
+    def with_node_masses(self, node_groups, kg_each: float) -> Component:
+        """A copy with ``kg_each`` kg of lumped mass spread evenly over each group of node indices.
+
+        Translations only (a bolt's rotary inertia is left out): hardware the FE model leaves out, such as the
+        bolts that hold each blade on the disk (paper §4–5 models them). ``kg_each`` = 0 returns ``self``.
+        """
+        if not (np.isfinite(kg_each) and kg_each >= 0):
+            raise ValueError(f"kg_each must be a mass in kg (≥ 0), got {kg_each!r}")
+        if kg_each == 0:
+            return self
+        d = np.zeros(self.n_dof)
+        for nodes in node_groups:
+            nodes = np.asarray(nodes, dtype=np.int64).ravel()
+            d[self.dofs_of(nodes).ravel()] += kg_each / nodes.size
+        return self.with_matrices(self.K, (self.M + sp.diags(d)).tocsr())
+
     def with_matrices(self, K: sp.spmatrix, M: sp.spmatrix, name: str | None = None) -> Component:
         """A copy with other matrices (e.g. after re-calibration), same nodes and sets."""
         return Component(name or self.name, K, M, self.node_ids, self.coords, dict(self.node_sets), dict(self.meta),

@@ -192,11 +192,11 @@ def _calibration_node(p: Pipeline, campaign) -> None:
     p.add(Node(names.CALIBRATION, calibration.calibrate, cal, label="material calibrated"))
 
 
-def _model_nodes(p: Pipeline) -> None:
-    bd = {"bd": names.FE_MODEL}
-    p.add(Node(names.DISK_CB, models.reduce_disk_cb, bd, label="Craig–Bampton disk built"))
+def _model_nodes(p: Pipeline, campaign) -> None:
+    bd, hw = {"bd": names.FE_MODEL}, {"hardware_kg": float(campaign.masses.get("slot_hardware_kg", 0.0))}
+    p.add(Node(names.DISK_CB, models.reduce_disk_cb, bd, hw, label="Craig–Bampton disk built"))
     p.add(Node(names.BLADE_RUBIN, models.reduce_blade_rubin, bd, label="Rubin blade built"))
-    p.add(Node(names.DISK_CYCLIC, models.reduce_disk_all_slots, bd, label="cyclic all-slot disk built"))
+    p.add(Node(names.DISK_CYCLIC, models.reduce_disk_all_slots, bd, hw, label="cyclic all-slot disk built"))
     p.add(Node(names.DELTA_ALL, models.blade_deltas, {"blades": names.BLADE_TABLE, "blade": names.BLADE_RUBIN},
                where="parent"))
 
@@ -389,7 +389,7 @@ def campaign_pipeline(campaign, opts: RunOptions) -> Pipeline:
     _ema_nodes(p, campaign)
     if opts.calibrate:
         _calibration_node(p, campaign)
-    _model_nodes(p)
+    _model_nodes(p, campaign)
     _pattern_nodes(p, opts, campaign.n_blades)
     _identify_nodes(p, campaign, opts)
     if opts.posterior:

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -12,7 +12,7 @@ from rom.errors import ROMError
 from rom.mistuning import rom_deltas
 from rom.rubin import RubinModel, reduce_blade
 
-__all__ = ["CyclicBuild", "model_key", "reduce_disk_cb", "reduce_blade_rubin", "reduce_disk_all_slots",
+__all__ = ["CyclicBuild", "model_key", "mounted", "reduce_disk_cb", "reduce_blade_rubin", "reduce_disk_all_slots",
            "blade_deltas"]
 
 
@@ -32,9 +32,19 @@ def model_key(bd) -> str:
     return cache.hash_inputs("fe-model", disk, cache.blade_key(bd), cache.cyclic_disk_key(bd, base_key=disk))
 
 
-def reduce_disk_cb(bd) -> CraigBamptonModel:
-    """The one-slot Craig–Bampton disk of the disk–one-blade ROMs (:func:`rom.craig_bampton.reduce_disk`)."""
-    return reduce_disk(bd, (1,))
+def mounted(bd, slots, hardware_kg: float):
+    """``bd`` with ``hardware_kg`` kg per slot (the bolts that hold a blade, ``[masses] slot_hardware_kg``)
+    spread over each listed slot's flank nodes of the disk (:meth:`rom.component.Component.with_node_masses`)."""
+    if not hardware_kg:
+        return bd
+    groups = [np.concatenate([bd.disk.node_set(f"slot{s}_{f}").ravel() for f in ("L", "R")]) for s in slots]
+    return replace(bd, disk=bd.disk.with_node_masses(groups, float(hardware_kg)))
+
+
+def reduce_disk_cb(bd, hardware_kg: float = 0.0) -> CraigBamptonModel:
+    """The one-slot Craig–Bampton disk of the disk–one-blade ROMs (:func:`rom.craig_bampton.reduce_disk`), with the
+    one mounted blade's hardware on its slot."""
+    return reduce_disk(mounted(bd, (1,), hardware_kg), (1,))
 
 
 def reduce_blade_rubin(bd) -> RubinModel:
@@ -42,10 +52,11 @@ def reduce_blade_rubin(bd) -> RubinModel:
     return reduce_blade(bd)
 
 
-def reduce_disk_all_slots(bd) -> CyclicBuild:
-    """The cyclic all-slot CB disk of the full-assembly solves; a disk that is not cyclic gives its reason."""
+def reduce_disk_all_slots(bd, hardware_kg: float = 0.0) -> CyclicBuild:
+    """The cyclic all-slot CB disk of the full-assembly solves, every slot with its blade's hardware; a disk that
+    is not cyclic gives its reason."""
     try:
-        return CyclicBuild(reduce_disk_cyclic(bd))
+        return CyclicBuild(reduce_disk_cyclic(mounted(bd, range(1, bd.n_slots + 1), hardware_kg)))
     except ROMError as exc:
         return CyclicBuild(None, str(exc))
 

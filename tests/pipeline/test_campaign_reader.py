@@ -72,6 +72,24 @@ def test_reads_a_good_manifest(folder):
     assert c.truth_dir is None
 
 
+def test_the_blades_hardware_reaches_the_disk_reductions(folder):
+    """``[masses] slot_hardware_kg`` becomes the disk nodes' parameter: the one-slot CB disk puts it on its slot,
+    the cyclic all-slot disk on every slot (the reduction itself: tests/rom/test_craig_bampton.py)."""
+    from bladetwin.stages import RunOptions, campaign_pipeline, names
+    from bladetwin.stages.models import mounted
+    from rom.academic import build_bladed_disk
+    from tests.rom.rom_models import COARSE
+
+    for text, kg in (("", 0.0), ("\n[masses]\nslot_hardware_kg = 0.02\n", 0.02)):
+        (folder / "campaign.toml").write_text(MANIFEST + text)
+        p = campaign_pipeline(read_campaign(folder), RunOptions())
+        assert p[names.DISK_CB].params == p[names.DISK_CYCLIC].params == {"hardware_kg": kg}
+    bd = build_bladed_disk(COARSE.with_(n_blades=3))
+    assert mounted(bd, (1,), 0.0) is bd
+    for slots in ((1,), (1, 2, 3)):
+        assert mounted(bd, slots, 0.02).disk.mass() == pytest.approx(bd.disk.mass() + 0.02 * len(slots), rel=1e-12)
+
+
 @pytest.mark.parametrize("old, new, needle", [
     ('file = "b1.uff"', 'file = "missing.uff"', "'missing.uff' not found"),
     ('type = "blade"', 'type = "rotor"', "type = 'rotor'"),
@@ -82,6 +100,7 @@ def test_reads_a_good_manifest(folder):
     ("max_order = 120", "max_order = -1", "max_order = -1"),
     ("n_blades = 3", 'n_blades = "3"', "'n_blades'"),
     ("[campaign]", "[campaign", "not valid TOML"),
+    ("max_order = 120", "max_order = 120\n\n[masses]\nslot_hardware_kg = -0.01", "slot_hardware_kg = -0.01"),
 ])
 def test_bad_manifests_are_one_line_errors_naming_the_field(folder, capsys, old, new, needle):
     path = folder / "campaign.toml"

@@ -1,7 +1,10 @@
 """Craig–Bampton disk reduction (paper Eqs. 2–6) against the FE disk."""
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
+import scipy.sparse as sp
 
 from rom.craig_bampton import craig_bampton, disk_boundary_dofs, reduce_disk
 from rom.solver import solve_modes
@@ -16,6 +19,26 @@ def test_free_disk_first_20_modes_within_0p3_percent_and_never_below_fe():
     rel = rom / fe - 1
     assert np.abs(rel).max() <= 3e-3
     assert rel.min() >= -1e-9  # Rayleigh–Ritz: a reduced model is never softer than the FE model
+
+
+def test_hardware_on_a_slot_against_the_fe_disk_with_the_masses_put_on_by_hand():
+    """Lumped masses (the bolts of ``[masses] slot_hardware_kg``) on slot 1's flank nodes: the mass they add, and
+    the CB disk reduced with them against an FE solve of the FE disk with the same masses assembled here."""
+    bd, kg = rom_models.bladed_disk(), 0.05
+    nodes = np.concatenate([bd.disk.node_set("slot1_L").ravel(), bd.disk.node_set("slot1_R").ravel()])
+    heavy = bd.disk.with_node_masses([nodes], kg)
+    assert heavy.mass() == pytest.approx(bd.disk.mass() + kg, rel=1e-12)
+    assert bd.disk.with_node_masses([nodes], 0.0) is bd.disk
+    with pytest.raises(ValueError, match="kg_each"):
+        bd.disk.with_node_masses([nodes], -1.0)
+    d = np.zeros(bd.disk.n_dof)
+    for k in range(3):
+        d[3 * nodes + k] = kg / nodes.size
+    fe = solve_modes(bd.disk.K, bd.disk.M + sp.diags(d), 20).frequencies_hz
+    rom = reduce_disk(replace(bd, disk=heavy), (1,)).free_modes(20).frequencies_hz
+    rel = rom / fe - 1
+    assert np.abs(rel).max() <= 3e-3 and rel.min() >= -1e-9
+    assert (rom_models.disk_cb().free_modes(20).frequencies_hz / rom - 1).max() > 1e-3  # the ROM sees the mass
 
 
 def test_reduced_matrices_are_the_projection_with_the_block_structure_of_eqs_4_5():
