@@ -11,9 +11,14 @@ __all__ = ["weighed", "specimen_truth", "blade_deltas_pct", "jsonable"]
 
 
 def weighed(twin) -> dict:
-    """What a lab's balance says (manifest ``[masses]``): the disk to 0.1 g, each blade to 1 mg (kg)."""
-    return {"disk_kg": round(component_mass(twin.truth_disk), 4),
-            "blade_kg": [round(component_mass(b), 6) for b in twin.blades]}
+    """What a lab's balance says (manifest ``[masses]``): the disk to 0.1 g, each blade to 1 mg, and the bolts
+    that hold one blade (``slot_hardware_kg``, where the twin has bolts) to 1 mg (kg)."""
+    out = {"disk_kg": round(component_mass(twin.truth_disk), 4),
+           "blade_kg": [round(component_mass(b), 6) for b in twin.blades]}
+    hardware = twin.params.bolt_mass_kg * twin.params.bolts_per_slot
+    if hardware > 0:
+        out["slot_hardware_kg"] = round(hardware, 6)
+    return out
 
 
 def specimen_truth(twin) -> dict:

@@ -196,7 +196,8 @@ def _model_nodes(p: Pipeline, campaign) -> None:
     bd, hw = {"bd": names.FE_MODEL}, {"hardware_kg": float(campaign.masses.get("slot_hardware_kg", 0.0))}
     p.add(Node(names.DISK_CB, models.reduce_disk_cb, bd, hw, label="Craig–Bampton disk built"))
     p.add(Node(names.BLADE_RUBIN, models.reduce_blade_rubin, bd, label="Rubin blade built"))
-    p.add(Node(names.DISK_CYCLIC, models.reduce_disk_all_slots, bd, hw, label="cyclic all-slot disk built"))
+    p.add(Node(names.DISK_CYCLIC, models.reduce_disk_all_slots, bd, hw, label="cyclic all-slot disk built",
+               version=2))  # 2: the build names the hardware it carries (design §8.78)
     p.add(Node(names.DELTA_ALL, models.blade_deltas, {"blades": names.BLADE_TABLE, "blade": names.BLADE_RUBIN},
                where="parent"))
 

@@ -11,7 +11,7 @@ from rom.errors import ROMError
 from rom.fe_assembly import AssemblyModes
 from rom.rubin import RubinModel
 
-from .models import CyclicBuild
+from .models import CyclicBuild, mounted
 
 __all__ = ["FullSolve", "n_full_modes", "solve_assembly", "method_note"]
 
@@ -47,8 +47,12 @@ def solve_assembly(cyclic: CyclicBuild, bd, blade: RubinModel, patterns: list[Co
             return FullSolve(solve_full_cyclic(cyclic.model, blade, by_slot, delta_all, n_modes=n_modes).modes,
                              "cyclic")
         except ROMError as exc:
-            return FullSolve(solve_full(bd, blade, by_slot, delta_all, n_modes=n_modes), "hybrid", str(exc))
-    return FullSolve(solve_full(bd, blade, by_slot, delta_all, n_modes=n_modes), "hybrid", cyclic.refused)
+            refused = str(exc)
+    else:
+        refused = cyclic.refused
+    # the hybrid's FE disk carries the blades' hardware as the cyclic disk does
+    bd = mounted(bd, range(1, bd.n_slots + 1), cyclic.hardware_kg)
+    return FullSolve(solve_full(bd, blade, by_slot, delta_all, n_modes=n_modes), "hybrid", refused)
 
 
 def method_note(solves: dict[str, FullSolve]) -> str:

@@ -18,10 +18,12 @@ __all__ = ["CyclicBuild", "model_key", "mounted", "reduce_disk_cb", "reduce_blad
 
 @dataclass(frozen=True, eq=False)
 class CyclicBuild:
-    """The cyclic all-slot CB disk (:mod:`rom.cyclic`), or why it was refused (``model`` None)."""
+    """The cyclic all-slot CB disk (:mod:`rom.cyclic`), or why it was refused (``model`` None); ``hardware_kg``
+    is the blades' hardware it carries on every slot (:func:`mounted`), which a fallback solve must carry too."""
 
     model: CyclicDiskModel | None
     refused: str = ""
+    hardware_kg: float = 0.0
 
 
 def model_key(bd) -> str:
@@ -56,9 +58,9 @@ def reduce_disk_all_slots(bd, hardware_kg: float = 0.0) -> CyclicBuild:
     """The cyclic all-slot CB disk of the full-assembly solves, every slot with its blade's hardware; a disk that
     is not cyclic gives its reason."""
     try:
-        return CyclicBuild(reduce_disk_cyclic(mounted(bd, range(1, bd.n_slots + 1), hardware_kg)))
+        return CyclicBuild(reduce_disk_cyclic(mounted(bd, range(1, bd.n_slots + 1), hardware_kg)), "", hardware_kg)
     except ROMError as exc:
-        return CyclicBuild(None, str(exc))
+        return CyclicBuild(None, str(exc), hardware_kg)
 
 
 def blade_deltas(blades, blade: RubinModel) -> np.ndarray:

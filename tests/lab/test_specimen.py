@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 from lab import specimen
+from lab.documents import weighed
 from lab.truth import TruthParams, assemble_truth, make_truth_twin, solve_truth
 from rom.contact import FLANKS, ContactPattern
 from rom.solver import solve_modes
@@ -93,6 +94,10 @@ def test_the_bolts_add_their_mass_to_each_mounted_slot(coarse_bd, patterns):
     blade_m = twin.blades[1].M[0::3, 0::3].sum()
     added = alone.M[0::3, 0::3].sum() - twin.truth_disk.M[0::3, 0::3].sum() - blade_m
     assert added == pytest.approx(params.bolts_per_slot * params.bolt_mass_kg, rel=1e-9)
+    # the manifest's [masses] gives what the lab weighs of them, per slot; the ideal twin has none to weigh
+    assert weighed(twin)["slot_hardware_kg"] == pytest.approx(added, rel=1e-6)
+    ideal = make_truth_twin(coarse_bd, patterns, np.random.default_rng(0), TruthParams.of("ideal"))
+    assert "slot_hardware_kg" not in weighed(ideal)
 
 
 def test_the_realistic_twin_solves_and_its_reseated_assembly_differs(coarse_bd, patterns):

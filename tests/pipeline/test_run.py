@@ -221,7 +221,8 @@ def test_a_disk_the_cyclic_reduction_refused_falls_back_on_the_sparse_hybrid(cam
     cache = tmp_path / "cache"
     shutil.copytree(root / "cache", cache, ignore=shutil.ignore_patterns("solve_assembly", "solve_updated"))
     (cyclic,) = (cache / "nodes" / "reduce_disk_all_slots").glob("*.npz")  # the cold run built it
-    codec.save(cyclic, CyclicBuild(None, "the disk is not cyclic (marked by the test)"))
+    built = codec.load(cyclic)
+    codec.save(cyclic, CyclicBuild(None, "the disk is not cyclic (marked by the test)", built.hardware_kg))
     capsys.readouterr()
     assert main([*RUN, str(camp), *KNN_ONLY, *PAPER_ROM, *NOFIG, "--workers", "1", "--out", str(tmp_path / "out"),
                  "--cache-dir", str(cache)]) == 0
