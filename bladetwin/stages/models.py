@@ -6,6 +6,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from rom.contact import FLANKS
 from rom.craig_bampton import CraigBamptonModel, reduce_disk
 from rom.cyclic import CyclicDiskModel, reduce_disk_cyclic
 from rom.errors import ROMError
@@ -39,7 +40,7 @@ def mounted(bd, slots, hardware_kg: float):
     spread over each listed slot's flank nodes of the disk (:meth:`rom.component.Component.with_node_masses`)."""
     if not hardware_kg:
         return bd
-    groups = [np.concatenate([bd.disk.node_set(f"slot{s}_{f}").ravel() for f in ("L", "R")]) for s in slots]
+    groups = [np.concatenate([bd.disk.node_set(f"slot{s}_{f}").ravel() for f in FLANKS]) for s in slots]
     return replace(bd, disk=bd.disk.with_node_masses(groups, float(hardware_kg)))
 
 
