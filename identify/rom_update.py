@@ -194,7 +194,8 @@ def fit_corrections(tracker: ModeTracker, pattern: ContactPattern, delta: np.nda
                     held: np.ndarray | None = None) -> InSituFit:
     """One blade's in-situ correction ε from its disk–one-blade test (regularised Gauss–Newton in ln f).
 
-    Only :func:`calibrated_modes` are corrected; the others keep ε = 0. The first solve is direct; the steps
+    Only :func:`calibrated_modes` are corrected, on the blade-dominated tracked modes alone (a blade share ≥
+    :data:`BLADE_SHARE_MIN` at ε = 0); the other modes keep ε = 0. The first solve is direct; the steps
     after it solve a Ritz model over the corrected modes (:func:`identify.d1b_solve.eps_model`), directly where
     its bound on a tracked frequency exceeds :data:`identify.d1b_solve.RITZ_TOL`.
 
@@ -221,6 +222,9 @@ def fit_corrections(tracker: ModeTracker, pattern: ContactPattern, delta: np.nda
     eps = np.where(fixed, held if held is not None else 0.0, 0.0)
     pencil = tuned_pencil(tracker, pattern)
     f, jac = tracked_sensitivity(tracker, pattern, delta + eps, pencil=pencil)
+    # Only the blade-dominated tracked modes set ε: a disk-dominated one carries the contact stiffness and the
+    # disk's own error, which it cannot tell from ε (design §8.79).
+    use &= 2 * jac.sum(axis=1) >= BLADE_SHARE_MIN
     free = calibrated_modes(jac)
     free = free[~fixed[free]]
     n_steps = n_iter if use.any() and free.size else 0

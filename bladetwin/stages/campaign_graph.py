@@ -342,7 +342,7 @@ def _update_nodes(p: Pipeline, campaign, opts: RunOptions) -> list[str]:
         p.add(Node(names.rom_update(name), rom_update.update_node,
                    {**rom, "stiffness": names.ROM_UPDATE_STIFFNESS, "patterns": pats, **d1b},
                    {"warn": name == "answer"}, label=f"in-situ corrections ({what} patterns)",
-                   version=7))  # 3: joint pattern first; 4: none on a mode calibrated otherwise; 5, 6: §8.53; 7: §8.76
+                   version=8))  # 3: joint pattern first; 4: none if calibrated otherwise; 5, 6: §8.53; 7, 8: §8.76, 79
     solves = {"updated": (_answer(opts, "experimental"), "answer")}
     if "reference" in sets:
         solves["updated_reference"] = (names.REFERENCE, "reference")
