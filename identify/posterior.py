@@ -34,8 +34,8 @@ from .contact_surrogate import ContactSurrogate
 from .errors import IdentifyError
 from .validation import contact_area_fraction, contact_centroid
 
-__all__ = ["JointPosterior", "joint_posterior", "noise_model", "prior_intervals", "width_ratio", "N_THIN",
-           "MAX_EXTENSIONS"]
+__all__ = ["JointPosterior", "joint_posterior", "noise_model", "predictive_spread", "prior_intervals", "width_ratio",
+           "N_THIN", "MAX_EXTENSIONS"]
 
 #: Every how many draws the areas' R̂ is taken (:func:`_diagnostics`).
 AREA_THIN = 5
@@ -127,6 +127,26 @@ def noise_model(model_spread, surrogate_error_pct, ema_std_rel=None, representat
         if extra is not None:
             s = s + np.nan_to_num(np.asarray(extra, np.float64)) ** 2
     return np.sqrt(s)
+
+
+def predictive_spread(spread, n_joints) -> np.ndarray:
+    """The scatter a new joint's f_measured / f_ROM − 1 has about the filmed joints' bias, shape (n_modes,).
+
+    The filmed joints' population std (``spread``, ddof 0, over ``n_joints`` per mode) made the sample std
+    (ddof 1) and widened by √(1 + 1/n) for the bias's own error: the prediction interval of a new observation,
+    together √((n + 1) / (n − 1)). With two or three filmed joints the plain spread is about half of it, and
+    the posterior's intervals were too narrow (design §8.80). NaN where ``n_joints`` < 2: no scatter measured.
+
+    Parameters
+    ----------
+    spread : array_like, shape (n_modes,)
+        :attr:`bladetwin.stages.bias.Features.spread` (relative).
+    n_joints : array_like of int, shape (n_modes,)
+        How many filmed joints found each mode.
+    """
+    s, n = np.asarray(spread, np.float64), np.asarray(n_joints, np.float64)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(n >= 2, s * np.sqrt((n + 1) / (n - 1)), np.nan)
 
 
 def _check(prior, surrogate, target_hz, sigma_rel, factor, n_walkers, n_steps) -> tuple:

@@ -51,6 +51,12 @@ class Features:
     numerical_hz: np.ndarray | None
     bias_estimated: bool
 
+    @property
+    def filmed_seen(self) -> np.ndarray:
+        """How many filmed joints' tests found each tracked mode, shape (n_tracked,) (int)."""
+        rows = [k for k, j in enumerate(self.joints) if int(j) in self.rom_known_hz]
+        return np.isfinite(self.measured_hz[rows]).sum(axis=0)
+
 
 def tracker_for(disk, blade, dataset: Dataset) -> ModeTracker:
     """The dataset's mode tracker, built once per process for the same (loaded) models and dataset."""

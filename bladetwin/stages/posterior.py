@@ -11,7 +11,7 @@ from identify.chains import ESS_MIN, RHAT_MAX
 from identify.contact_prior import ContactPrior, contact_prior, held_out_projections
 from identify.contact_surrogate import ContactSurrogate, fit_surrogate
 from identify.dataset import Dataset
-from identify.posterior import JointPosterior, joint_posterior, noise_model
+from identify.posterior import JointPosterior, joint_posterior, noise_model, predictive_spread
 from rom.academic import flank_coordinates
 from rom.contact import ContactPattern
 
@@ -117,7 +117,12 @@ def _target(features: Features, tracker, reference, delta, joint: int, input: st
     y = features.measured_hz[k]
     if input == "experimental":
         y = y / (1 + features.bias)
-    return y, noise_model(features.spread, error_pct, ema_std_rel(fit, features.measured_hz[k]), family_rel)
+    # A mode fewer than two filmed joints found has no measured scatter, so its model error is unknown: a test
+    # that finds it beyond the model's reach would pin the chains to the prior's edge (design §8.80).
+    seen = features.filmed_seen
+    y = np.where(seen >= min(2, seen.max(initial=0)), y, np.nan)
+    spread = np.nan_to_num(predictive_spread(features.spread, seen))  # one filmed joint: no scatter known, 0
+    return y, noise_model(spread, error_pct, ema_std_rel(fit, features.measured_hz[k]), family_rel)
 
 
 def posterior_joint(disk, blade, dataset: Dataset, features: Features, prior: ContactPrior,
