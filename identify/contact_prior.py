@@ -9,7 +9,7 @@ standard normal under the prior:
   level may have. Each film was read at its own level (how the lab calibrated it), so their scatter is one
   part. The other is the level that would give each film's own contact area on the mean map: joints seated
   deeper or clamped harder have larger areas for the same pressure shape, and the level is how a map shows
-  that. s_ℓ² is the sum of both variances.
+  that. s_ℓ² is the sum of both variances, pooled over the two flanks (their degrees of freedom as weights).
 
 θ is laid out ``[θ_L (k_L), θ_R (k_R), θ_ℓL, θ_ℓR]``.
 """
@@ -160,13 +160,16 @@ def contact_prior(sampler_L: PatternSampler, sampler_R: PatternSampler, films_L:
     n_nodes = samplers[0].components_.shape[1]
     basis = np.zeros((2, max(ks), n_nodes))
     mean = np.empty((2, n_nodes))
-    level, level_std = np.empty(2), np.empty(2)
+    level, level_var, dof = np.empty(2), np.empty(2), np.empty(2)
     for i, (s, f, k) in enumerate(zip(samplers, films, ks, strict=True)):
         mean[i] = s.mean_ + s.score_mean_ @ s.components_
         basis[i, :k] = scale * s.score_std_[:k, None] * s.components_[:k]
         levels = np.array([m.level for m in f], np.float64)
         level[i] = levels.mean()
-        level_std[i] = scale * _level_spread(s, levels, [float(np.mean(m.contact)) for m in f])
+        level_var[i], dof[i] = _level_spread(s, levels, [float(np.mean(m.contact)) for m in f]) ** 2, len(f) - 1
+    # One scatter for both flanks: a joint's seating sets both, and two films that happen to agree on one flank
+    # would otherwise pin its level (design §8.81).
+    level_std = np.full(2, scale * np.sqrt(dof @ level_var / dof.sum()))
     return ContactPrior(mean, basis, ks, level, level_std, tuple(samplers[0].grid_shape_), float(scale))
 
 

@@ -261,7 +261,7 @@ def _posterior_nodes(p: Pipeline, campaign, opts: RunOptions) -> None:
                             f"support at most {max(n_known - 1, 0)} per flank")
     rom = {"disk": names.DISK_CB, "blade": names.BLADE_RUBIN, "dataset": names.DATASET}
     p.add(Node(names.POSTERIOR_PRIOR, posterior.prior_node, {"films": names.FILMS},
-               {"scale": opts.scale, "n_components": opts.n_components}, where="parent"))
+               {"scale": opts.scale, "n_components": opts.n_components}, where="parent", version=2))  # §8.81
     n = posterior.N_SOLVES // posterior.N_PARTS
     parts = {f"part_{k}": p.add(Node(names.posterior_part(k), posterior.surrogate_solves,
                                      {**rom, "prior": names.POSTERIOR_PRIOR},

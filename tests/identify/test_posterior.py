@@ -74,6 +74,20 @@ def test_prior_level_spread_comes_from_the_films():
     assert contact_prior(s, s, films, films, scale=2.0).level_std[0] == pytest.approx(2 * p.level_std[0])
 
 
+def test_two_films_that_agree_on_one_flank_do_not_pin_its_level():
+    """Left films identical (same map, same level): alone they would give that flank no level scatter at all.
+    Pooled, both flanks get the scatter the right films show, at (n − 1)/(2n − 2) = half its variance, and each
+    flank keeps its own mean level."""
+    maps, films = _films(np.random.default_rng(3))
+    s = PatternSampler(threshold=0.4).fit(maps)
+    twins = [SimpleNamespace(level=films[0].level, contact=films[0].contact) for _ in films]
+    right = contact_prior(s, s, films, films).level_std[1]
+    p = contact_prior(s, s, twins, films)
+    assert p.level_std[0] == p.level_std[1] == pytest.approx(right / np.sqrt(2))
+    assert p.level[0] == pytest.approx(films[0].level)
+    assert p.level[1] == pytest.approx(np.mean([f.level for f in films]))
+
+
 def test_surrogate_recovers_a_log_linear_model_and_measures_its_error():
     rng = np.random.default_rng(1)
     prior = _prior()

@@ -7,6 +7,7 @@ percentage at most 2 decimals, one number of decimals down a column, an exponent
 from __future__ import annotations
 
 import re
+import statistics
 
 __all__ = ["check_column", "numbers_in", "is_percent_header", "NOT_A_NUMBER"]
 
@@ -67,7 +68,7 @@ def check_column(texts: list[str], *, percent: bool = False, where: str = "") ->
         near_one = len(numbers) == 1 and 0.99 <= abs(float(largest)) < 1
         values = sorted({float(n) for n in numbers})
         gaps = sorted(b - a for a, b in zip(values, values[1:], strict=False))
-        dense = len(values) >= 3 and gaps[len(gaps) // 2] < 10.0 ** (1 - d) * (1 + 1e-9)
+        dense = len(values) >= 3 and statistics.median(gaps) < 10.0 ** (1 - d) * (1 + 1e-9)
         whole = len(str(int(abs(float(largest))))) if abs(float(largest)) >= 1 else 0  # 1993: all shown
         allowed = 6 if near_one else max(3, whole) + (1 if dense else 0)
         assert _significant(largest) <= allowed, f"{where}: {largest} has too many digits"
