@@ -36,9 +36,16 @@ def _geometry(patterns: list, reference: list, joints: list[int], bd) -> dict:
             "centroid_distance_mm": float(1e3 * np.nanmean(geo.centroid_distance)), "node_agreement": float(agree)}
 
 
-def _calibration(posts: dict, reference: list, joints: list[int]) -> dict:
-    """The posterior's 90 % area intervals and probability maps against the reference patterns."""
-    inside, width, brier = [], [], []
+def _calibration(posts: dict, reference: list, joints: list[int], coords, features, feature_modes) -> dict:
+    """The posterior's 90 % intervals and probability maps against the reference patterns.
+
+    Coverage of the area (each flank), of the centroid (each flank's u and v, where the reference has contact)
+    and of the feature frequencies: the ROM's with the reference pattern (``features.numerical_hz``), inside
+    the interval of the ROM's over the posterior's samples; ``None`` where there is none to count.
+    """
+    inside, cen_in, freq_in, width, brier = [], [], [], [], []
+    rows = {int(j): k for k, j in enumerate(features.joints)}
+    feat = list(feature_modes) if features.numerical_hz is not None else []
     for j in joints:
         if j not in posts:
             continue
@@ -48,9 +55,17 @@ def _calibration(posts: dict, reference: list, joints: list[int]) -> dict:
         inside.extend(((lo <= a) & (a <= hi)).tolist())
         width.extend((hi - lo).tolist())
         brier.append(float(np.mean((p.probability - ref) ** 2)))
+        c = contact_centroid(ref, *coords)  # (flank, u/v); NaN on a flank without contact
+        ok = np.isfinite(c)
+        cen_in.extend(((p.centroid_ci90[..., 0] <= c) & (c <= p.centroid_ci90[..., 1]))[ok].tolist())
+        if feat and j in rows:
+            f, (flo, fhi) = features.numerical_hz[rows[j]], p.frequencies_hz_ci90[feat].T
+            freq_in.extend(((flo <= f) & (f <= fhi))[np.isfinite(f)].tolist())
     if not inside:
         return {}
     return {"ci90_coverage_area": float(np.mean(inside)), "ci90_median_width_pp": float(np.median(width)),
+            "ci90_coverage_centroid": float(np.mean(cen_in)) if cen_in else None,
+            "ci90_coverage_frequency": float(np.mean(freq_in)) if freq_in else None,
             "brier": float(np.mean(brier))}
 
 
@@ -100,7 +115,8 @@ def methods_summary(res) -> dict:
                 continue
             fig = _geometry(patterns, res.reference, joints, res.bd)
             if method == "posterior":
-                fig |= _calibration(res.posterior.get(name, {}), res.reference, joints)
+                fig |= _calibration(res.posterior.get(name, {}), res.reference, joints,
+                                    flank_coordinates(res.bd), res.features, res.dataset.feature_modes)
             entry[name] = fig
         if method == "posterior":
             # what the data pin down needs no reference: every run reports it

@@ -256,7 +256,8 @@ def _posterior_section(res: RunResult, out: Path, methods: dict) -> list[dict]:
                     f" pp, centroid distance {exp['centroid_distance_mm']:.2f} mm, node agreement "
                     f"{100 * exp['node_agreement']:.1f} %; the true area lies in the 90 % interval on "
                     f"{100 * exp.get('ci90_coverage_area', float('nan')):.0f} % of flanks (median width "
-                    f"{exp.get('ci90_median_width_pp', float('nan')):.1f} pp).")
+                    f"{exp.get('ci90_median_width_pp', float('nan')):.1f} pp), the true centroid on "
+                    f"{100 * np.float64(exp.get('ci90_coverage_centroid', np.nan)):.0f} % of flank axes.")
     ratio = (m.get("width_ratio") or {}).get("experimental")
     if ratio:
         text.append("What the data pin down: each 90 % interval's width over the prior's (median over the joints; 1 "

@@ -118,7 +118,16 @@ def _interval_sentences(post: dict) -> list[str]:
     if exp.get("ci90_coverage_area") is not None:
         out.append(f"Against the true patterns it holds the true area on "
                    f"{format_number(100 * exp['ci90_coverage_area'], 2)} % of the flanks (90 % expected).")
+    held = [(what, exp.get(key)) for what, key in _HELD if as_float(exp.get(key)) is not None]
+    if held:
+        out.append("Its 90 % intervals hold " + "; ".join(f"{what} on {format_number(100 * v, 2)} %"
+                                                          for what, v in held) + ".")
     return out or ["The contact posterior gave no interval for this campaign."]
+
+
+#: The posterior's other coverages the report states: what each interval is checked against, and its key.
+_HELD = (("the true centroid (each flank's u and v)", "ci90_coverage_centroid"),
+         ("the ROM's feature frequencies with the true pattern", "ci90_coverage_frequency"))
 
 
 def _span(values: list[float]) -> str:

@@ -1,13 +1,12 @@
 """``docs/results.md`` and the README's figures, generated from a run's ``summary.json`` and the benchmarks' JSON.
 
-``make results`` copies the last run's ``summary.json`` into ``docs/results/`` and calls :func:`main`;
-``make bench-results`` refreshes the benchmarks' files there (``bench_*.json``, each written by a benchmark's
-``--json``). Every figure in the generated text is a JSON value, rounded for display by the report's one rule
-(:mod:`bladetwin.report_cells`: about 3 significant digits, percentages at most 2 decimals, one number of decimals
-down a column, or along a row where a row holds one quantity). In ``docs/results.md`` the row that shows it
-names its file and key (``source`` column), so a reader (and ``tests/pipeline/test_results_doc.py``) can check it;
-the README's blocks are the same rows without that column. Nothing here computes a figure: it only formats.
-"""
+``make results`` copies the last run's ``summary.json`` into ``docs/results/`` and calls :func:`main`; ``make
+bench-results`` refreshes the benchmarks' files there (``bench_*.json``, each by a benchmark's ``--json``). Every
+figure in the generated text is a JSON value, rounded by the report's one rule (:mod:`bladetwin.report_cells`:
+about 3 significant digits, percentages at most 2 decimals, one number of decimals down a column, or along a row
+where a row holds one quantity). In ``docs/results.md`` the row that shows it names its file and key (``source``
+column), so a reader (and ``tests/pipeline/test_results_doc.py``) can check it; the README's blocks are the same
+rows without that column. Nothing here computes a figure: it only formats."""
 
 from __future__ import annotations
 
@@ -129,6 +128,8 @@ _METHOD_FIGURES = (("mean area-fraction error (pp)", "area_error_pp", "pct"),
                    ("mean centroid distance (mm)", "centroid_distance_mm", "num"),
                    ("node agreement", "node_agreement", "num"),
                    ("true area inside the 90 % interval (share of flanks)", "ci90_coverage_area", "num"),
+                   ("true centroid inside it (share of flank axes)", "ci90_coverage_centroid", "num"),
+                   ("true-pattern feature frequencies inside it (share)", "ci90_coverage_frequency", "num"),
                    ("median 90 % interval width (pp)", "ci90_median_width_pp", "pct"))
 
 
@@ -278,10 +279,8 @@ def _pad(rows: list[Row], n: int) -> list[Row]:
 
 
 def readme_blocks(docs: dict, sources: bool = False) -> dict[str, str]:
-    """The README's blocks by marker name: ``table8``, ``contact``, ``rom``, ``response``, ``performance``.
-
-    ``sources=True`` gives the same blocks with each table's ``source`` column, as ``docs/results.md`` shows them.
-    """
+    """The README's blocks by marker name: ``table8``, ``contact``, ``rom``, ``response``, ``performance``;
+    ``sources=True`` gives the same blocks with each table's ``source`` column, as ``docs/results.md`` shows them."""
     s = docs.get("summary.json", {})
     run = f"`bladetwin run` on `{s.get('campaign', '?')}`"
     t8 = [f"Figures of {run} (`docs/results/summary.json`; mean over the paired modes), with the paper's ROM. "
