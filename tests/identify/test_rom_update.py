@@ -127,9 +127,9 @@ def test_in_situ_corrections_are_recovered(setup):
     assert np.max(np.abs(fit.residual_pct)) < 0.01
 
 
-def test_a_disk_dominated_mode_s_model_error_leaves_the_corrections_alone(setup):
-    """A disk-dominated tracked mode off by 2 % (the disk's own error, which the model of a real specimen has):
-    ε, set by the blade-dominated modes alone, is recovered as without it, and that mode keeps its residual."""
+def _sprung_case(setup, last: float):
+    """A blade on the true springs with δ and ε on its calibrated modes (linearly from +3 % to ``last``), and
+    its tracked frequencies: (sprung tracker, pattern, δ, sensitivities, calibrated modes, ε, frequencies)."""
     _, tracker, parts, pats = setup
     m = tracker.blade.m
     delta = np.r_[0.004, -0.006, 0.002, np.zeros(m - 3)]
@@ -137,14 +137,20 @@ def test_a_disk_dominated_mode_s_model_error_leaves_the_corrections_alone(setup)
     _, jac = tracked_sensitivity(sprung, pats[1], delta)
     modes = calibrated_modes(jac)
     eps = np.zeros(m)
-    eps[modes] = np.linspace(0.03, -0.01, modes.size)
-    y = _truth(tracker, parts, pats[1], delta, eps)
+    eps[modes] = np.linspace(0.03, last, modes.size)
+    return sprung, pats[1], delta, jac, modes, eps, _truth(tracker, parts, pats[1], delta, eps)
+
+
+def test_a_disk_dominated_mode_s_model_error_leaves_the_corrections_alone(setup):
+    """A disk-dominated tracked mode off by 2 % (the disk's own error, which the model of a real specimen has):
+    ε, set by the blade-dominated modes alone, is recovered as without it, and that mode keeps its residual."""
+    sprung, pattern, delta, jac, modes, eps, y = _sprung_case(setup, -0.01)
     disk = 2 * jac.sum(axis=1) < 0.5
     # the disk-dominated mode that leans most on a corrected free mode: the one that would pull ε hardest
     k = int(np.flatnonzero(disk)[np.argmax(jac[np.ix_(disk, modes)].max(axis=1))])
     assert jac[k, modes].max() > 1e-3  # it does see the blade, a little
     y[k] *= 1.02
-    fit = fit_corrections(sprung, pats[1], delta, y, noise_floor(np.full(y.size, np.nan)))
+    fit = fit_corrections(sprung, pattern, delta, y, noise_floor(np.full(y.size, np.nan)))
     np.testing.assert_allclose(fit.correction[modes], eps[modes], atol=2e-3)
     assert abs(fit.residual_pct[k] - 2.0) < 0.05
     assert np.max(np.abs(fit.residual_pct[~disk])) < 0.01
@@ -247,24 +253,17 @@ def test_the_blades_common_correction_is_no_blade_s_disagreement():
 def test_a_mode_the_test_cannot_see_takes_the_blades_common_value(setup):
     """A d1b test without the tracked mode that a free mode dominates: unobserved_modes names that free mode, and
     held at the blades' common value the fit recovers the other modes' corrections as from a complete test."""
-    _, tracker, parts, pats = setup
-    m = tracker.blade.m
-    delta = np.r_[0.004, -0.006, 0.002, np.zeros(m - 3)]
-    sprung = replace(tracker, blade=with_contact_stiffness(tracker.blade, interface_compliance(parts, TRUE_K)))
-    _, jac = tracked_sensitivity(sprung, pats[1], delta)
-    modes = calibrated_modes(jac)
-    eps = np.zeros(m)
-    eps[modes] = np.linspace(0.03, -0.02, modes.size)
-    y = _truth(tracker, parts, pats[1], delta, eps)
+    sprung, pattern, delta, jac, modes, eps, y = _sprung_case(setup, -0.02)
+    tracker = setup[1]
     share = 2 * jac.sum(axis=1)
     lost = int(modes[-1])  # every tracked mode that this free mode dominates goes unfound
     y[(share >= 0.5) & (np.argmax(jac, axis=1) == lost)] = np.nan
     sigma = noise_floor(np.full(y.size, np.nan))
-    free_fit = fit_corrections(sprung, pats[1], delta, y, sigma)
+    free_fit = fit_corrections(sprung, pattern, delta, y, sigma)
     assert list(unobserved_modes(free_fit)) == [lost]
     hold = held_at_common(free_fit, eps)  # the blades' common values, here the truth's
     assert np.flatnonzero(np.isfinite(hold)).tolist() == [lost]
-    held = fit_corrections(sprung, pats[1], delta, y, sigma, held=hold)
+    held = fit_corrections(sprung, pattern, delta, y, sigma, held=hold)
     assert held.correction[lost] == eps[lost]
     rest = modes[modes != lost]
     np.testing.assert_allclose(held.correction[rest], eps[rest], atol=2e-3)
