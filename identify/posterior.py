@@ -132,10 +132,11 @@ def noise_model(model_spread, surrogate_error_pct, ema_std_rel=None, representat
 def predictive_spread(spread, n_joints) -> np.ndarray:
     """The scatter a new joint's f_measured / f_ROM − 1 has about the filmed joints' bias, shape (n_modes,).
 
-    The filmed joints' population std (``spread``, ddof 0, over ``n_joints`` per mode) made the sample std
-    (ddof 1) and widened by √(1 + 1/n) for the bias's own error: the prediction interval of a new observation,
-    together √((n + 1) / (n − 1)). With two or three filmed joints the plain spread is about half of it, and
-    the posterior's intervals were too narrow (design §8.80). NaN where ``n_joints`` < 2: no scatter measured.
+    The filmed joints' population std (``spread``: ddof 0 over ``n_joints`` per mode), turned into the sample
+    std (ddof 1) and widened by √(1 + 1/n) for the bias's own error: the prediction interval of a new
+    observation, √((n + 1) / (n − 1)) in all. With two or three filmed joints the plain spread is about half of
+    it, and the posterior's intervals were too narrow (design §8.80). NaN where ``n_joints`` < 2: no scatter
+    measured.
 
     Parameters
     ----------
