@@ -169,6 +169,12 @@ def _gn_step(r: np.ndarray, jac: np.ndarray, sigma: np.ndarray, eps: np.ndarray,
     return np.linalg.solve(A, b)
 
 
+def _blade_share(jacobian: np.ndarray) -> np.ndarray:
+    """Share of each tracked mode's stiffness the blade's free modes hold (0–1), shape (n_tracked,): twice the sum
+    of ∂ ln f/∂δ over the free modes, since Eq. 19's δ scales the blade's modal stiffness and f ∝ √λ."""
+    return 2 * jacobian.sum(axis=1)
+
+
 def calibrated_modes(jacobian: np.ndarray) -> np.ndarray:
     """The free-interface modes an in-situ fit corrects: the one that dominates each blade-dominated tracked mode.
 
@@ -185,8 +191,7 @@ def calibrated_modes(jacobian: np.ndarray) -> np.ndarray:
     -------
     ndarray of int, sorted, 0-based
     """
-    share = 2 * jacobian.sum(axis=1)
-    return np.unique(np.argmax(jacobian[share >= BLADE_SHARE_MIN], axis=1))
+    return np.unique(np.argmax(jacobian[_blade_share(jacobian) >= BLADE_SHARE_MIN], axis=1))
 
 
 def fit_corrections(tracker: ModeTracker, pattern: ContactPattern, delta: np.ndarray, measured_hz: np.ndarray,
@@ -224,7 +229,7 @@ def fit_corrections(tracker: ModeTracker, pattern: ContactPattern, delta: np.nda
     f, jac = tracked_sensitivity(tracker, pattern, delta + eps, pencil=pencil)
     # Only the blade-dominated tracked modes set ε: a disk-dominated one carries the contact stiffness and the
     # disk's own error, which it cannot tell from ε (design §8.79).
-    use &= 2 * jac.sum(axis=1) >= BLADE_SHARE_MIN
+    use &= _blade_share(jac) >= BLADE_SHARE_MIN
     free = calibrated_modes(jac)
     free = free[~fixed[free]]
     n_steps = n_iter if use.any() and free.size else 0
@@ -236,7 +241,7 @@ def fit_corrections(tracker: ModeTracker, pattern: ContactPattern, delta: np.nda
         eps[free] = np.maximum(eps[free] + step, -0.5 - delta[free])  # keeps (1 + δ + ε) ω² positive
         got = None if model is None else model.sensitivity(tracker, delta + eps)
         f, jac = got if got is not None else tracked_sensitivity(tracker, pattern, delta + eps, pencil=pencil)
-    return InSituFit(eps, f, y, 2 * jac.sum(axis=1), np.argmax(jac, axis=1))
+    return InSituFit(eps, f, y, _blade_share(jac), np.argmax(jac, axis=1))
 
 
 def start_stiffness(tracker: ModeTracker, compliance_unit: np.ndarray) -> float:

@@ -24,7 +24,7 @@ import scipy.sparse as sp
 
 from rom.academic import BladedDisk
 from rom.component import Component
-from rom.contact import FLANKS, ContactPattern
+from rom.contact import FLANKS, ContactPattern, slot_flank_nodes
 from rom.hex20 import assemble
 
 __all__ = ["TEST_DAYS", "material_offsets", "truth_disk", "sector_of_elements", "contact_scale",
@@ -168,14 +168,7 @@ def bolt_masses(disk: Component, slots: Sequence[int], bolt_mass_kg: float, bolt
     The bolts press each root from the disk's rim: their mass is spread evenly over the disk's flank-grid
     nodes of the slot (translations only; a bolt's rotary inertia is left out).
     """
-    d = np.zeros(disk.n_dof)
-    if bolt_mass_kg > 0:
-        for s in slots:
-            nodes = np.concatenate([disk.node_set(f"slot{s}_{f}").ravel() for f in FLANKS])
-            per = bolt_mass_kg * bolts_per_slot / nodes.size
-            for k in range(3):
-                d[3 * nodes + k] += per
-    return sp.diags(d, format="csr")
+    return disk.node_masses([slot_flank_nodes(disk, s) for s in slots], max(bolt_mass_kg, 0.0) * bolts_per_slot)
 
 
 def day_factors(rng: np.random.Generator, swing_k: float, modulus_coefficient_per_k: float) -> dict[str, float]:

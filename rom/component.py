@@ -115,21 +115,25 @@ class Component:
         u[0::3] = 1.0
         return float(u @ (self.M @ u))
 
-    def with_node_masses(self, node_groups, kg_each: float) -> Component:
-        """A copy with ``kg_each`` kg of lumped mass spread evenly over each group of node indices.
+    def node_masses(self, node_groups, kg_each: float) -> sp.csr_matrix:
+        """``kg_each`` kg of lumped mass spread evenly over each group of node indices, as a diagonal mass
+        matrix on this component's DOFs, shape (n_dof, n_dof).
 
         Translations only (a bolt's rotary inertia is left out): hardware the FE model leaves out, such as the
-        bolts that hold each blade on the disk (paper §4–5 models them). ``kg_each`` = 0 returns ``self``.
+        bolts that hold each blade on the disk (paper §4–5 models them).
         """
         if not (np.isfinite(kg_each) and kg_each >= 0):
             raise ValueError(f"kg_each must be a mass in kg (≥ 0), got {kg_each!r}")
-        if kg_each == 0:
-            return self
         d = np.zeros(self.n_dof)
-        for nodes in node_groups:
+        for nodes in node_groups if kg_each else ():
             nodes = np.asarray(nodes, dtype=np.int64).ravel()
             d[self.dofs_of(nodes).ravel()] += kg_each / nodes.size
-        return self.with_matrices(self.K, (self.M + sp.diags(d)).tocsr())
+        return sp.diags(d, format="csr")
+
+    def with_node_masses(self, node_groups, kg_each: float) -> Component:
+        """A copy with :meth:`node_masses` added to its mass matrix; ``kg_each`` = 0 returns ``self``."""
+        masses = self.node_masses(node_groups, kg_each)
+        return self if kg_each == 0 else self.with_matrices(self.K, (self.M + masses).tocsr())
 
     def with_matrices(self, K: sp.spmatrix, M: sp.spmatrix, name: str | None = None) -> Component:
         """A copy with other matrices (e.g. after re-calibration), same nodes and sets."""

@@ -11,9 +11,17 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["ContactPattern"]
+__all__ = ["ContactPattern", "slot_flank_nodes"]
 
 FLANKS = ("L", "R")
+
+
+def slot_flank_nodes(disk, slot: int) -> np.ndarray:
+    """The disk's flank-grid node indices of one slot, the L grid then the R grid, row-major, shape (2·n_grid,).
+
+    ``disk`` is a :class:`rom.component.Component` with the node sets ``slot{s}_L`` and ``slot{s}_R``.
+    """
+    return np.concatenate([disk.node_set(f"slot{slot}_{f}").ravel() for f in FLANKS])
 
 
 def _as_bool_grid(name: str, grid) -> np.ndarray:

@@ -27,6 +27,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from .component import Component
+from .contact import slot_flank_nodes
 from .modal import DenseModes, dense_modes
 from .solver import available_backends, factorize, solve_modes_factored
 
@@ -379,7 +380,7 @@ def disk_boundary_dofs(bd, slots: Sequence[int]) -> tuple[np.ndarray, np.ndarray
     dofs, rots = [], []
     for s in slots:
         bd.check_slot(s)
-        nodes = np.concatenate([bd.disk.node_set(f"slot{s}_L").ravel(), bd.disk.node_set(f"slot{s}_R").ravel()])
+        nodes = slot_flank_nodes(bd.disk, s)
         dofs.append(bd.disk.dofs_of(nodes).ravel())
         rots.append(np.broadcast_to(bd.slot_rotation(s), (nodes.size, 3, 3)))
     return np.concatenate(dofs), np.concatenate(rots)

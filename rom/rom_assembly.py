@@ -35,7 +35,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from .academic import BladedDisk, check_slot
-from .contact import ContactPattern
+from .contact import ContactPattern, slot_flank_nodes
 from .craig_bampton import CraigBamptonModel
 from .errors import ROMError
 from .fe_assembly import AssemblyModes
@@ -358,7 +358,7 @@ def _hybrid_assembly(
         R = bd.slot_rotation(s)
         Kp = _rotate_triplets(se.K, iface_rows, R)
         Mp = _rotate_triplets(se.M, iface_rows, R)
-        nodes = np.concatenate([bd.disk.node_set(f"slot{s}_L").ravel(), bd.disk.node_set(f"slot{s}_R").ravel()])
+        nodes = slot_flank_nodes(bd.disk, s)
         disk_dofs = bd.disk.dofs_of(nodes).ravel()  # same order as the blade's root DOFs
         idx = np.empty(se.n, np.int64)
         idx[:nm] = n + np.arange(nm)

@@ -51,7 +51,7 @@ def solve_assembly(cyclic: CyclicBuild, bd, blade: RubinModel, patterns: list[Co
     else:
         refused = cyclic.refused
     # the hybrid's FE disk carries the blades' hardware as the cyclic disk does
-    bd = mounted(bd, range(1, bd.n_slots + 1), cyclic.hardware_kg)
+    bd = mounted(bd, None, cyclic.hardware_kg)
     return FullSolve(solve_full(bd, blade, by_slot, delta_all, n_modes=n_modes), "hybrid", refused)
 
 

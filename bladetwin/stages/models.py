@@ -6,7 +6,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from rom.contact import FLANKS
+from rom.contact import slot_flank_nodes
 from rom.craig_bampton import CraigBamptonModel, reduce_disk
 from rom.cyclic import CyclicDiskModel, reduce_disk_cyclic
 from rom.errors import ROMError
@@ -37,10 +37,11 @@ def model_key(bd) -> str:
 
 def mounted(bd, slots, hardware_kg: float):
     """``bd`` with ``hardware_kg`` kg per slot (the bolts that hold a blade, ``[masses] slot_hardware_kg``)
-    spread over each listed slot's flank nodes of the disk (:meth:`rom.component.Component.with_node_masses`)."""
+    spread over each listed slot's flank nodes of the disk (:meth:`rom.component.Component.with_node_masses`);
+    ``slots`` None: every slot."""
     if not hardware_kg:
         return bd
-    groups = [np.concatenate([bd.disk.node_set(f"slot{s}_{f}").ravel() for f in FLANKS]) for s in slots]
+    groups = [slot_flank_nodes(bd.disk, s) for s in (range(1, bd.n_slots + 1) if slots is None else slots)]
     return replace(bd, disk=bd.disk.with_node_masses(groups, float(hardware_kg)))
 
 
@@ -59,7 +60,7 @@ def reduce_disk_all_slots(bd, hardware_kg: float = 0.0) -> CyclicBuild:
     """The cyclic all-slot CB disk of the full-assembly solves, every slot with its blade's hardware; a disk that
     is not cyclic gives its reason."""
     try:
-        return CyclicBuild(reduce_disk_cyclic(mounted(bd, range(1, bd.n_slots + 1), hardware_kg)), "", hardware_kg)
+        return CyclicBuild(reduce_disk_cyclic(mounted(bd, None, hardware_kg)), "", hardware_kg)
     except ROMError as exc:
         return CyclicBuild(None, str(exc), hardware_kg)
 
