@@ -110,6 +110,11 @@ def rom_section(res: RunResult, out: Path, rom: dict | None) -> list[dict]:
             "The exported ROM (identified_rom_modes.uff) is the updated one.",
             f"Contact stiffness: {stiff}. Disk-one-blade RMS residual over the tracked modes: paper's ROM "
             f"{r['paper']:.3f} %, updated ROM {r['updated']:.3f} %."]
+    for rep in p.get("replaced_joints", []):
+        text.append(f"Joint {rep['joint']}: with the posterior's answer, its blade's in-situ correction lay beyond "
+                    f"what the blades' scatter explains, so the updated ROM takes the posterior draw that the "
+                    f"joint's disk-one-blade test bears out best (contact area L {rep['area_pct'][0]:.0f} %, "
+                    f"R {rep['area_pct'][1]:.0f} %); the contact answer itself is unchanged.")
     for kind in ("paper", "updated"):
         b = rom[kind]["cases"].get("B")
         if b:

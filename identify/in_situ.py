@@ -7,13 +7,21 @@ test that lacks the tracked mode a free mode dominates cannot set that mode: it 
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 import numpy as np
 
+from rom.contact import ContactPattern
+
 from .rom_update import BLADE_SHARE_MIN, DISAGREE_BOUND, InSituFit
 
-__all__ = ["unobserved_modes", "population_centre", "common_correction", "held_at_common", "calibration_warnings"]
+__all__ = ["unobserved_modes", "population_centre", "common_correction", "held_at_common", "calibration_warnings",
+           "disagrees", "consistent_pattern", "N_CANDIDATES"]
+
+#: Posterior samples :func:`consistent_pattern` tries: evenly spaced over the kept draws, so that a region holding
+#: a quarter of the posterior's mass is missed by all of them with a chance of 0.75⁸ = 10 %; each costs one blade
+#: fit (about half a second on the default disk).
+N_CANDIDATES = 8
 
 
 def unobserved_modes(fit: InSituFit) -> dict[int, int]:
@@ -118,3 +126,49 @@ def calibration_warnings(blade: int, fit: InSituFit, free_hz: np.ndarray, *, bou
         out.append(f"blade {blade}, free mode {i + 1} ({free_hz[i]:.1f} Hz): in-situ correction {beyond(i)}: the "
                    f"disk–one-blade test disagrees with the model; most likely {cause}, else the files' labels")
     return out
+
+
+def disagrees(fit: InSituFit, centre: np.ndarray | None = None, bound: float = DISAGREE_BOUND) -> bool:
+    """Whether a free mode the test sees has its correction more than ``bound`` from the blades' ``centre``: the
+    disagreement of :func:`calibration_warnings`' second kind."""
+    c = np.zeros(fit.correction.size) if centre is None else np.nan_to_num(np.asarray(centre, float))
+    off = np.abs(fit.correction - c) > bound
+    off[list(unobserved_modes(fit))] = False
+    return bool(off.any())
+
+
+def consistent_pattern(fit_one: Callable[[ContactPattern], InSituFit], candidates: Sequence[ContactPattern],
+                       sigma_rel: np.ndarray, centre: np.ndarray | None = None,
+                       bound: float = DISAGREE_BOUND) -> tuple[ContactPattern, InSituFit] | None:
+    """Among a joint's plausible patterns, the one its disk–one-blade test bears out best with a blade correction
+    the blades' population explains; None where none does.
+
+    The contact posterior sees the test through a surrogate of the rigid-tie ROM; the updated ROM (springs, ε) is
+    the model the lab takes away. Where the posterior's answer leaves that ROM a blade correction beyond ``bound``
+    (:func:`disagrees`), ε has absorbed what the pattern leaves unexplained. Each candidate (draws of the same
+    posterior) is fitted as the answer was, and the one with the least misfit over every tracked mode the test
+    found, Σ ((ln y − ln f) / σ)², among those that do not disagree, is returned: the posterior's draw that the
+    more exact model and the blade population agree with best.
+
+    Parameters
+    ----------
+    fit_one : callable
+        A pattern → its blade's :class:`InSituFit` (with the blades' common part held where the test cannot see
+        a mode, as the answer's fit).
+    candidates : sequence of rom.ContactPattern
+    sigma_rel : ndarray, shape (n_tracked,)
+        The test's relative noise per tracked mode.
+    centre : ndarray, shape (m,), optional
+        The blades' common correction (:func:`common_correction`).
+    """
+    best, best_cost = None, np.inf
+    s = np.asarray(sigma_rel, float)
+    for pattern in candidates:
+        fit = fit_one(pattern)
+        if disagrees(fit, centre, bound):
+            continue
+        use = np.isfinite(fit.measured_hz) & (fit.measured_hz > 0)
+        cost = float(np.sum((np.log(fit.measured_hz[use] / fit.frequencies_hz[use]) / s[use]) ** 2))
+        if cost < best_cost:
+            best, best_cost = (pattern, fit), cost
+    return best

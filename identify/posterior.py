@@ -80,6 +80,9 @@ class JointPosterior:
     samples_hz : ndarray, shape (n_thin, n_modes)
         Predicted tracked frequencies of :data:`N_THIN` (or all, if fewer) kept samples, evenly thinned from the
         flattened chain (Hz): what the forced response's intervals propagate (:mod:`rom.forced.perturbation`).
+    samples_grids : ndarray of bool, shape (n_thin, 2, rows, cols)
+        The contact grids (flanks L, R) of the same kept samples as ``samples_hz``: the patterns the posterior
+        finds plausible, for what must choose among them (the ROM update's consistency check).
     answer_hz : ndarray, shape (n_modes,)
         Predicted tracked frequencies of the answer (each node in contact where its probability exceeds ½), Hz:
         the samples' centre, the pattern the full solves take.
@@ -104,6 +107,7 @@ class JointPosterior:
     samples_hz: np.ndarray
     answer_hz: np.ndarray
     diagnostics: ChainDiagnostics | None = None
+    samples_grids: np.ndarray | None = None
 
 
 def noise_model(model_spread, surrogate_error_pct, ema_std_rel=None, representation_rel=None) -> np.ndarray:
@@ -280,7 +284,7 @@ def _summarise(prior, surrogate, chain, logp, coordinates, logr, acceptance,
         centroid_map=cen[best], centroid_ci90=centroid_ci90,
         frequencies_hz=freq[best], frequencies_hz_ci90=np.percentile(freq, (5, 95), axis=0).T,
         n_samples=len(chain), acceptance=acceptance, samples_hz=freq[thin], answer_hz=answer,
-        diagnostics=diagnostics)
+        diagnostics=diagnostics, samples_grids=grids[thin])
 
 
 def _widths(area_ci90: np.ndarray, centroid_ci90: np.ndarray) -> np.ndarray:

@@ -138,6 +138,10 @@ class UpdatedROM:
         The same for the paper's ROM (rigid ties, Eq. 19), for comparison.
     free_hz : ndarray, shape (m,)
         The tuned ROM blade's free-interface frequencies (Hz), naming the modes.
+    replaced : tuple of (int, ContactPattern)
+        (joint, pattern) for each joint whose given pattern its disk–one-blade test did not bear out, with the
+        plausible pattern the update took instead (:func:`identify.in_situ.consistent_pattern`); empty: every
+        joint as given.
     """
 
     stiffness: ContactStiffness | None
@@ -146,6 +150,14 @@ class UpdatedROM:
     residual_pct: np.ndarray
     residual_paper_pct: np.ndarray
     free_hz: np.ndarray
+    replaced: tuple = ()
+
+    def patterns_for(self, patterns) -> list[ContactPattern]:
+        """``patterns`` (one per slot) with :attr:`replaced`'s patterns at their joints."""
+        out = list(patterns)
+        for joint, pattern in self.replaced:
+            out[int(joint) - 1] = pattern
+        return out
 
     def frequency_correction_pct(self, delta_all: np.ndarray) -> np.ndarray:
         """The corrections as in-situ frequency changes (%) of each free mode, shape (n_blades, m)."""

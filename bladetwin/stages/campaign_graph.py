@@ -138,16 +138,11 @@ def reference_patterns(campaign) -> list | None:
     return None
 
 
-def _has_reference(campaign) -> bool:
-    truth = campaign.truth_dir
-    return (truth is not None and (truth / "patterns.npz").is_file()) or len(campaign.known_joints) == \
-        campaign.n_blades
-
-
 def identify_inputs(campaign, opts: RunOptions) -> list[str]:
     """The inputs the identification runs on (:data:`bladetwin.stages.knn.INPUTS`) for this campaign."""
-    return [n for n in knn.INPUTS if (n != "experimental_no_bias" or opts.bias)
-            and (n != "numerical" or _has_reference(campaign))]
+    truth, n_known = campaign.truth_dir, len(campaign.known_joints)
+    reference = (truth is not None and (truth / "patterns.npz").is_file()) or n_known == campaign.n_blades
+    return [n for n in knn.INPUTS if (n != "experimental_no_bias" or opts.bias) and (n != "numerical" or reference)]
 
 
 def campaign_sources(campaign, model: Source, store, opts: RunOptions, nominal: Source | None = None
@@ -287,11 +282,14 @@ def _posterior_nodes(p: Pipeline, campaign, opts: RunOptions) -> None:
                  "surrogate": names.POSTERIOR_SURROGATE, "delta_all": names.DELTA_ALL,
                  "factors": names.POSTERIOR_FACTORS, "bd": names.FE_MODEL, "reference": names.REFERENCE,
                  "fit": fits[j], "representation": names.POSTERIOR_REPRESENTATION},
-                {"input": name, "joint": int(j), "seed": opts.seed, "n_steps": opts.posterior_steps}, version=9,
+                {"input": name, "joint": int(j), "seed": opts.seed, "n_steps": opts.posterior_steps}, version=11,
                 label=f"joint {j} posterior ({name} input)")).name
         p.add(Node(names.posterior_patterns(name), posterior.posterior_patterns,
                    {"known": names.KNOWN, "baseline": names.BASELINE, **posts}, {"n_blades": campaign.n_blades},
                    where="parent", stored=False, content_key=True))
+        if name == "experimental":  # the ROM update's plausible patterns (rom_update.candidates_node)
+            p.add(Node(names.POSTERIOR_CANDIDATES, rom_update.candidates_node, posts, where="parent", stored=False,
+                       content_key=True))
 
 
 #: The full solves: name → the patterns they take.
@@ -336,13 +334,14 @@ def _update_nodes(p: Pipeline, campaign, opts: RunOptions) -> list[str]:
         sets["reference"] = names.REFERENCE
     if campaign.of_type("assembly"):
         sets["baseline"] = names.PATTERNS_BASELINE
+    cand = {"candidates": names.POSTERIOR_CANDIDATES} if opts.posterior else {}  # answers not borne out: §8.84
     for name, pats in sets.items():
-        what = UPDATE_SETS[name]
         # Only the exported ROM's update warns: the controls would repeat its warnings with other figures.
         p.add(Node(names.rom_update(name), rom_update.update_node,
-                   {**rom, "stiffness": names.ROM_UPDATE_STIFFNESS, "patterns": pats, **d1b},
-                   {"warn": name == "answer"}, label=f"in-situ corrections ({what} patterns)",
-                   version=8))  # 3: joint pattern first; 4: none if calibrated otherwise; 5, 6: §8.53; 7, 8: §8.76, 79
+                   {**rom, "stiffness": names.ROM_UPDATE_STIFFNESS, "patterns": pats, **d1b,
+                    **(cand if name == "answer" else {})}, {"warn": name == "answer"},
+                   label=f"in-situ corrections ({UPDATE_SETS[name]} patterns)",
+                   version=9))  # 3: joint pattern first; 4: none if calibrated otherwise; 5, 6: §8.53; 7-9: §8.76-84
     solves = {"updated": (_answer(opts, "experimental"), "answer")}
     if "reference" in sets:
         solves["updated_reference"] = (names.REFERENCE, "reference")

@@ -24,6 +24,7 @@ __all__ = [
     "RESPONSE_D1B_PAPER", "RESPONSE_D1B_UPDATED", "RESPONSE_AF_PAPER", "RESPONSE_AF_UPDATED", "RESPONSE_TRUTH",
     "EMA", "TEST", "FULL", "ROM_UPDATE", "PATTERNS", "POSTERIOR", "REFINE", "FAMILIES",
     "PATTERNS_BASELINE", "POSTERIOR_PRIOR", "POSTERIOR_SURROGATE", "POSTERIOR_REPRESENTATION", "POSTERIOR_FACTORS",
+    "POSTERIOR_CANDIDATES",
     "ROM_UPDATE_STIFFNESS",
     "test_name", "joint_key", "ema", "test_source", "full", "rom_update", "patterns", "posterior_patterns", "refine",
     "posterior_joint", "posterior_part", "member", "members", "per_joint", "answer_of",
@@ -127,6 +128,8 @@ def posterior_part(part: int) -> str:
 PATTERNS_BASELINE = patterns(BASELINE)
 POSTERIOR_PRIOR, POSTERIOR_SURROGATE = POSTERIOR + "prior", POSTERIOR + "surrogate"
 POSTERIOR_REPRESENTATION, POSTERIOR_FACTORS = POSTERIOR + "representation", POSTERIOR + "factors"
+#: Each unfilmed joint's plausible patterns (posterior draws) for the ROM update's consistency check.
+POSTERIOR_CANDIDATES = POSTERIOR + "candidates"
 ROM_UPDATE_STIFFNESS = rom_update("stiffness")
 
 

@@ -13,7 +13,14 @@ from dataclasses import replace
 import numpy as np
 
 from identify.dataset import Dataset
-from identify.in_situ import calibration_warnings, common_correction, held_at_common
+from identify.in_situ import (
+    N_CANDIDATES,
+    calibration_warnings,
+    common_correction,
+    consistent_pattern,
+    disagrees,
+    held_at_common,
+)
 from identify.rom_update import (
     StiffnessFit,
     UpdatedROM,
@@ -31,7 +38,8 @@ from .full import FullSolve, solve_assembly
 from .models import CyclicBuild
 from .posterior import ema_std_rel
 
-__all__ = ["ROM_KINDS", "updated_blade", "updated_parts", "stiffness_node", "update_node", "solve_updated"]
+__all__ = ["ROM_KINDS", "updated_blade", "updated_parts", "stiffness_node", "update_node", "solve_updated",
+           "candidates_node"]
 
 #: ``--rom``: the paper's ROM only, or the updated one beside it (default).
 ROM_KINDS = ("paper", "updated")
@@ -76,13 +84,16 @@ def stiffness_node(disk, blade, dataset: Dataset, features: Features, known: dic
 
 
 def update_node(disk, blade, dataset: Dataset, features: Features, delta_all: np.ndarray, bd,
-                stiffness: StiffnessFit | None, patterns: list[ContactPattern], warn: bool = True, **d1b) -> UpdatedROM:
+                stiffness: StiffnessFit | None, patterns: list[ContactPattern], warn: bool = True,
+                candidates: dict | None = None, **d1b) -> UpdatedROM:
     """The node: every tested blade's in-situ correction with its joint's pattern in ``patterns`` (one per slot).
 
     Blades without a disk–one-blade test keep Eq. 19 (ε = 0). Warnings name the blade and the mode whose data
     the calibration cannot use (:func:`identify.rom_update.calibration_warnings`); ``warn=False`` keeps them
     quiet, for the controls (the baseline's and the true patterns' updates), which repeat the exported ROM's
-    warnings with other figures.
+    warnings with other figures. ``candidates`` (:func:`candidates_node`): joint → plausible patterns; where
+    the given pattern leaves a blade's correction beyond the bound, the one its test bears out best is taken
+    (:func:`identify.in_situ.consistent_pattern`, :attr:`UpdatedROM.replaced`).
     """
     tracker = tracker_for(disk, blade, dataset)
     stiff = None if stiffness is None else stiffness.stiffness
@@ -112,17 +123,51 @@ def update_node(disk, blade, dataset: Dataset, features: Features, delta_all: np
         if j in fits and (hold := held_at_common(fits[j], centre)) is not None:
             fits[j] = fit_corrections(upd, patterns[j - 1], delta_all[j - 1], features.measured_hz[k], sigma[j],
                                       held=hold)
+    replaced = _replace_inconsistent(upd, fits, candidates or {}, centre, features, delta_all, sigma)
     for j, fit in fits.items():
         eps[j - 1], done[j - 1], res[j - 1] = fit.correction, True, fit.residual_pct
     for j, fit in fits.items() if warn else ():
         filmed = stiffness is not None and j in stiffness.joints  # its pattern is the film's
         for text in calibration_warnings(j, fit, free_hz, filmed=filmed, centre=centre):
             warnings.warn(text, UserWarning, stacklevel=2)
-    return UpdatedROM(stiff, eps, done, res, res_paper, free_hz)
+    return UpdatedROM(stiff, eps, done, res, res_paper, free_hz, tuple(replaced))
+
+
+def _replace_inconsistent(upd, fits: dict, candidates: dict, centre, features: Features, delta_all, sigma) -> list:
+    """[(joint, pattern)] of the joints whose fit disagrees and a candidate that does not; ``fits`` updated."""
+    rows = {int(j): k for k, j in enumerate(features.joints)}
+    replaced = []
+    for j, pats in candidates.items():
+        if j not in fits or not disagrees(fits[j], centre):
+            continue
+        y = features.measured_hz[rows[j]]
+
+        def fit_one(pat, j=j, y=y):
+            fit = fit_corrections(upd, pat, delta_all[j - 1], y, sigma[j])
+            hold = held_at_common(fit, centre)
+            return fit if hold is None else fit_corrections(upd, pat, delta_all[j - 1], y, sigma[j], held=hold)
+
+        if (got := consistent_pattern(fit_one, pats, sigma[j], centre)) is not None:
+            replaced.append((int(j), got[0]))
+            fits[j] = got[1]
+    return replaced
 
 
 def solve_updated(cyclic: CyclicBuild, bd, blade: RubinModel, patterns: list[ContactPattern], delta_all: np.ndarray,
                   n_modes: int, update: UpdatedROM) -> FullSolve:
     """The node: the full bladed disk's modes with the updated ROM (blades on springs, δ + ε) and ``patterns``."""
     blade, delta_all = updated_parts(blade, bd, delta_all, update)
-    return solve_assembly(cyclic, bd, blade, patterns, delta_all, n_modes)
+    return solve_assembly(cyclic, bd, blade, update.patterns_for(patterns), delta_all, n_modes)
+
+
+def candidates_node(**posts) -> dict[int, list[ContactPattern]]:
+    """The node: each unfilmed joint's plausible patterns for the ROM update, from its contact posterior
+    (``post_NN``: :class:`identify.posterior.JointPosterior` or None): :data:`identify.in_situ.N_CANDIDATES` of
+    its kept draws, evenly spaced."""
+    out = {}
+    for name, post in posts.items():
+        grids = None if post is None else post.samples_grids
+        if grids is not None and len(grids):
+            pick = np.unique(np.linspace(0, len(grids) - 1, N_CANDIDATES).round().astype(int))
+            out[int(name.rsplit("_", 1)[1])] = [ContactPattern(grids[k, 0], grids[k, 1]) for k in pick]
+    return out

@@ -13,9 +13,17 @@ import scipy.linalg as sla
 import identify.d1b_solve as d1b_solve
 from identify.d1b_solve import eps_model, tuned_pencil
 from identify.errors import IdentifyError
-from identify.in_situ import calibration_warnings, held_at_common, population_centre, unobserved_modes
+from identify.in_situ import (
+    calibration_warnings,
+    consistent_pattern,
+    disagrees,
+    held_at_common,
+    population_centre,
+    unobserved_modes,
+)
 from identify.rom_update import (
     InSituFit,
+    UpdatedROM,
     calibrated_modes,
     fit_contact_stiffness,
     fit_corrections,
@@ -269,3 +277,43 @@ def test_a_mode_the_test_cannot_see_takes_the_blades_common_value(setup):
     np.testing.assert_allclose(held.correction[rest], eps[rest], atol=2e-3)
     assert calibration_warnings(1, held, np.sqrt(tracker.blade.omega2_tuned) / (2 * np.pi),
                                 centre=hold) == []
+
+
+def test_of_the_plausible_patterns_the_one_the_test_bears_out_with_a_plausible_correction_is_taken(setup):
+    """A joint whose answer is nearly empty (20 % against a true 70 %): its blade's correction comes out far beyond
+    the bound. Of the candidates, one is too empty as well (its correction beyond the bound too), one has about
+    the right area but other nodes, one is the true pattern: the true one is taken, the test's misfit the least
+    among those whose correction is plausible; with only implausible candidates, none is."""
+    bd, tracker, parts, pats = setup
+    m = tracker.blade.m
+    delta = np.r_[0.004, -0.006, 0.002, np.zeros(m - 3)]
+    sprung = replace(tracker, blade=with_contact_stiffness(tracker.blade, interface_compliance(parts, TRUE_K)))
+    y = _truth(tracker, parts, pats[1], delta, np.zeros(m))
+    sigma = noise_floor(np.full(y.size, np.nan))
+    grid = bd.params.grid
+    answer, empty = (ContactPattern.random(grid, a, np.random.default_rng(k)) for a, k in ((0.2, 0), (0.12, 1)))
+    other = ContactPattern.random(grid, 0.7, np.random.default_rng(5))
+    fits = []
+
+    def fit_one(pattern):
+        fits.append(fit_corrections(sprung, pattern, delta, y, sigma))
+        return fits[-1]
+
+    assert disagrees(fit_one(answer)) and disagrees(fit_one(empty))
+    got = consistent_pattern(fit_one, [empty, other, pats[1]], sigma)
+    assert got is not None and got[0] is pats[1]
+    assert not disagrees(fits[-2]) and np.max(np.abs(got[1].residual_pct)) < np.max(np.abs(fits[-2].residual_pct))
+    assert consistent_pattern(fit_one, [answer, empty], sigma) is None
+
+
+def test_the_updated_rom_takes_its_replaced_patterns():
+    """UpdatedROM.patterns_for puts each replaced joint's pattern in its slot and leaves the others as given."""
+    grid = (3, 7)
+    given = [ContactPattern.random(grid, 0.6, np.random.default_rng(k)) for k in range(4)]
+    new = ContactPattern.random(grid, 0.4, np.random.default_rng(9))
+    upd = UpdatedROM(None, np.zeros((4, 2)), np.ones(4, bool), np.zeros((4, 3)), np.zeros((4, 3)), np.ones(2),
+                     ((3, new),))
+    out = upd.patterns_for(given)
+    assert out[2] is new and all(out[k] is given[k] for k in (0, 1, 3))
+    assert UpdatedROM(*[getattr(upd, f) for f in ("stiffness", "corrections", "calibrated", "residual_pct",
+                                                   "residual_paper_pct", "free_hz")]).patterns_for(given) == given
