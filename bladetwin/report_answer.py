@@ -87,6 +87,11 @@ def rom_choice(summary: dict) -> dict | None:
         if c["paper_B"] is not None:
             entries.append(("paper's ROM", "Eq. 19 deltas, rigid contact ties", c["paper_B"], False))
         text = f"The updated ROM, with {answer} contact at the unfilmed joints"
+        replaced = [r["joint"] for r in _get(summary, "rom", "updated", "parameters", "replaced_joints") or []]
+        if replaced:  # design §8.84
+            text += (f" (joint{'s' if len(replaced) > 1 else ''} {', '.join(map(str, replaced))}: the posterior "
+                     "draw its disk–one-blade test bears out, where the answer left its blade's correction "
+                     "implausible)")
     else:
         entries = [("paper's ROM", "Eq. 19 deltas, rigid contact ties", c["B"], True)]
         text = f"The paper's ROM (the updated one did not run), with {answer} contact at the unfilmed joints"

@@ -27,7 +27,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 from bladetwin.index_page import render_index  # noqa: E402
 from bladetwin.methods import FREQUENCY_HEADER, POSTERIOR_HEADER  # noqa: E402
 from bladetwin.report import render_report  # noqa: E402
-from bladetwin.report_answer import HEADLINE_CHARS, trust_paragraphs  # noqa: E402
+from bladetwin.report_answer import HEADLINE_CHARS, rom_choice, trust_paragraphs  # noqa: E402
 from bladetwin.rom_summary import CASE_HEADER  # noqa: E402
 from bladetwin.run_figures import plot_posterior_frequencies  # noqa: E402
 from bladetwin.util import atomic_savefig  # noqa: E402
@@ -289,6 +289,16 @@ def test_the_trust_paragraphs_are_generated_from_the_summary(folder):
     s["kind"] = "lab"
     contact = trust_paragraphs(s)[0][1]
     assert "no interval" in contact and "intervals are the measure" in contact
+
+
+def test_the_rom_to_take_away_names_the_joints_where_it_took_a_posterior_draw(folder):
+    """Where the ROM update replaced a joint's answer (design §8.84), the first screen says so by joint."""
+    s = json.loads((folder / "summary.json").read_text())
+    params = s["rom"]["updated"].setdefault("parameters", {})
+    params["replaced_joints"] = [{"joint": 4, "area_pct": [8.0, 17.0]}]
+    assert "(joint 4: the posterior draw its disk–one-blade test bears out" in rom_choice(s)["text"]
+    params["replaced_joints"] = []
+    assert "posterior draw" not in rom_choice(s)["text"]
 
 
 def _check_page(page: Path) -> int:
