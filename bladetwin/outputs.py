@@ -246,8 +246,8 @@ def _posterior_section(res: RunResult, out: Path, methods: dict) -> list[dict]:
             "contact level, Eq. 30's prior), given every tracked mode of its disk-one-blade test; the noise is the "
             "ROM's scatter on the filmed joints, the EMA's standard deviation, the surrogate's error and the family's "
             "error on the films (each film against its projection on the other films' PCA). The answer "
-            "is each node's majority (probability > ½); the intervals are 90 % posterior intervals. Beyond the paper "
-            "(docs/identify.md).",
+            "holds, on each flank, the nodes most probably in contact, as many as the posterior's median count; the "
+            "intervals are 90 % posterior intervals. Beyond the paper (docs/identify.md).",
             f"Surrogate of the d1b ROM: held-out RMS error {', '.join(f'{e:.3f}' for e in s.error_pct)} % per mode "
             f"({s.n_test} of {s.n_train + s.n_test} direct solves held out)."]
     exp = m.get("experimental")

@@ -282,7 +282,7 @@ def _posterior_nodes(p: Pipeline, campaign, opts: RunOptions) -> None:
                  "surrogate": names.POSTERIOR_SURROGATE, "delta_all": names.DELTA_ALL,
                  "factors": names.POSTERIOR_FACTORS, "bd": names.FE_MODEL, "reference": names.REFERENCE,
                  "fit": fits[j], "representation": names.POSTERIOR_REPRESENTATION},
-                {"input": name, "joint": int(j), "seed": opts.seed, "n_steps": opts.posterior_steps}, version=11,
+                {"input": name, "joint": int(j), "seed": opts.seed, "n_steps": opts.posterior_steps}, version=14,
                 label=f"joint {j} posterior ({name} input)")).name
         p.add(Node(names.posterior_patterns(name), posterior.posterior_patterns,
                    {"known": names.KNOWN, "baseline": names.BASELINE, **posts}, {"n_blades": campaign.n_blades},

@@ -150,11 +150,15 @@ def posterior_joint(disk, blade, dataset: Dataset, features: Features, prior: Co
 
 
 def answer_pattern(post: JointPosterior) -> ContactPattern:
-    """The posterior's answer: each node in contact where its posterior probability exceeds ½.
-
-    This is the Bayes estimate under node-wise (Hamming) loss, the pattern that maximises the expected node
-    agreement; the MAP pattern (``post.pattern``) is kept beside it.
-    """
+    """The posterior's answer (:attr:`identify.posterior.JointPosterior.answer_grids`: the most probable nodes, as
+    many as the samples' median count per flank); each node's majority (P > ½) where that answer cannot hold a
+    blade (fewer than three non-collinear nodes) or was not stored. The MAP pattern (``post.pattern``) is kept
+    beside it."""
+    if post.answer_grids is not None:
+        try:
+            return ContactPattern(post.answer_grids[0], post.answer_grids[1])
+        except ValueError:
+            pass
     return ContactPattern(post.probability[0] > 0.5, post.probability[1] > 0.5)
 
 

@@ -12,6 +12,7 @@ from identify.contact_surrogate import ContactSurrogate, fit_surrogate
 from identify.posterior import (
     WIDTH_NAMES,
     joint_posterior,
+    median_area_answer,
     noise_model,
     predictive_spread,
     prior_intervals,
@@ -213,3 +214,27 @@ def test_the_predictive_spread_gives_a_new_joint_s_interval_its_nominal_coverage
     if n <= 3:
         assert plain.mean() < 0.75
     assert np.isnan(predictive_spread([0.01], [1])).all()
+
+
+def test_the_answer_has_the_median_count_and_the_best_expected_node_agreement_of_that_count():
+    """On a 2 × 3 flank pair, every pattern with the samples' median count is enumerated: none has a larger
+    expected node agreement, Σ P(node as chosen) under the samples, than the answer; a flank whose median count
+    is 0 stays empty."""
+    from itertools import combinations
+
+    rng = np.random.default_rng(4)
+    p_true = rng.uniform(0.05, 0.95, (2, 2, 3))
+    grids = rng.uniform(size=(301, 2, 2, 3)) < p_true
+    grids[:, 1] &= rng.uniform(size=(301, 1, 1)) < 0.3  # flank R mostly empty: median count 0
+    prob = grids.mean(axis=0)
+    ans = median_area_answer(prob, grids)
+    for f in range(2):
+        n = int(np.median(grids[:, f].reshape(301, -1).sum(axis=1)))
+        assert ans[f].sum() == n
+
+        def agreement(mask, f=f):
+            return float(np.sum(np.where(mask, prob[f].ravel(), 1 - prob[f].ravel())))
+
+        best = max(agreement(np.isin(np.arange(6), c)) for c in combinations(range(6), n))
+        assert agreement(ans[f].ravel()) == pytest.approx(best)
+    assert not ans[1].any()
