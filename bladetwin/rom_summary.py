@@ -46,7 +46,7 @@ def _parameters(res) -> dict:
                        "frequency_correction_pct": [float(freq[b, i]) for i in modes]})
     # joints whose answer the updated ROM replaced by a posterior draw its test bears out (design §8.84)
     replaced = [{"joint": int(j), "area_pct": [float(100 * pat.L.mean()), float(100 * pat.R.mean())]}
-                for j, pat in getattr(upd, "replaced", ())]
+                for j, pat in upd.replaced]
     return {"contact_stiffness": stiff, "rigid_ties": fit is None, "blades": blades, "replaced_joints": replaced,
             "d1b_rms_residual_pct": {"paper": _rms(upd.residual_paper_pct), "updated": _rms(upd.residual_pct)}}
 

@@ -120,21 +120,23 @@ def calibration_warnings(blade: int, fit: InSituFit, free_hz: np.ndarray, *, bou
                        f"is corrected only through the other tracked modes' small shares of it, to {beyond(i)}")
     cause = (f"joint {blade}'s film (the joint seated differently in the disk–one-blade test)" if filmed
              else f"joint {blade}'s identified pattern (a contact outside the films' family)")
-    for i in np.flatnonzero(np.abs(off) > bound):
-        if int(i) in missing:
-            continue
+    for i in _disagreeing(off, missing, bound):
         out.append(f"blade {blade}, free mode {i + 1} ({free_hz[i]:.1f} Hz): in-situ correction {beyond(i)}: the "
                    f"disk–one-blade test disagrees with the model; most likely {cause}, else the files' labels")
     return out
+
+
+def _disagreeing(off: np.ndarray, missing: dict, bound: float) -> list[int]:
+    """The free modes the test sees (not in ``missing``) whose correction ``off`` the blades' common one lies
+    beyond ``bound``, ascending (0-based)."""
+    return [int(i) for i in np.flatnonzero(np.abs(off) > bound) if int(i) not in missing]
 
 
 def disagrees(fit: InSituFit, centre: np.ndarray | None = None, bound: float = DISAGREE_BOUND) -> bool:
     """Whether a free mode the test sees has its correction more than ``bound`` from the blades' ``centre``: the
     disagreement of :func:`calibration_warnings`' second kind."""
     c = np.zeros(fit.correction.size) if centre is None else np.nan_to_num(np.asarray(centre, float))
-    off = np.abs(fit.correction - c) > bound
-    off[list(unobserved_modes(fit))] = False
-    return bool(off.any())
+    return bool(_disagreeing(fit.correction - c, unobserved_modes(fit), bound))
 
 
 def consistent_pattern(fit_one: Callable[[ContactPattern], InSituFit], candidates: Sequence[ContactPattern],

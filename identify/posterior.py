@@ -35,7 +35,7 @@ from .errors import IdentifyError
 from .validation import contact_area_fraction, contact_centroid
 
 __all__ = ["JointPosterior", "joint_posterior", "noise_model", "predictive_spread", "median_area_answer",
-           "prior_intervals", "width_ratio", "N_THIN", "MAX_EXTENSIONS"]
+           "evenly_spaced", "prior_intervals", "width_ratio", "N_THIN", "MAX_EXTENSIONS"]
 
 #: Every how many draws the areas' R̂ is taken (:func:`_diagnostics`).
 AREA_THIN = 5
@@ -135,6 +135,11 @@ def noise_model(model_spread, surrogate_error_pct, ema_std_rel=None, representat
         if extra is not None:
             s = s + np.nan_to_num(np.asarray(extra, np.float64)) ** 2
     return np.sqrt(s)
+
+
+def evenly_spaced(n: int, k: int) -> np.ndarray:
+    """``min(k, n)`` distinct indices into ``n`` draws, evenly spaced from the first to the last, ascending."""
+    return np.unique(np.linspace(0, n - 1, min(k, n)).round().astype(int))
 
 
 def median_area_answer(probability, grids) -> np.ndarray:
@@ -306,7 +311,7 @@ def _summarise(prior, surrogate, chain, logp, coordinates, logr, acceptance,
     area, cen = _area_centroid(grids, u, v)
     area_ci90, centroid_ci90 = _ci90(area, cen)
     freq = surrogate.predict_hz(grids) * np.exp(logr)
-    thin = np.unique(np.linspace(0, len(chain) - 1, min(N_THIN, len(chain))).round().astype(int))
+    thin = evenly_spaced(len(chain), N_THIN)
     probability = grids.mean(axis=0)
     answer_grids = median_area_answer(probability, grids)
     answer = surrogate.predict_hz(answer_grids[None])[0] * np.exp(logr)

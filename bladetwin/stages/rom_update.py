@@ -21,6 +21,7 @@ from identify.in_situ import (
     disagrees,
     held_at_common,
 )
+from identify.posterior import evenly_spaced
 from identify.rom_update import (
     StiffnessFit,
     UpdatedROM,
@@ -168,6 +169,6 @@ def candidates_node(**posts) -> dict[int, list[ContactPattern]]:
     for name, post in posts.items():
         grids = None if post is None else post.samples_grids
         if grids is not None and len(grids):
-            pick = np.unique(np.linspace(0, len(grids) - 1, N_CANDIDATES).round().astype(int))
-            out[int(name.rsplit("_", 1)[1])] = [ContactPattern(grids[k, 0], grids[k, 1]) for k in pick]
+            out[int(name.rsplit("_", 1)[1])] = [ContactPattern(grids[k, 0], grids[k, 1])
+                                                for k in evenly_spaced(len(grids), N_CANDIDATES)]
     return out
