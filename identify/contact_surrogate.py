@@ -28,6 +28,9 @@ __all__ = ["ContactSurrogate", "fit_surrogate"]
 #: Ridge penalties tried (contact indicators are 0/1 and targets log-frequencies: a scale-free grid).
 ALPHAS = np.logspace(-6, 3, 19)
 
+#: Grids predicted at a time (:meth:`ContactSurrogate.predict_hz`).
+_PREDICT_BLOCK = 4096
+
 
 @dataclass(frozen=True, eq=False)
 class ContactSurrogate:
@@ -57,11 +60,15 @@ class ContactSurrogate:
 
     def predict_hz(self, contact) -> np.ndarray:
         """Tracked d1b frequencies at δ = 0 (Hz), shape (n, n_modes), of grids shaped (n, 2, rows, cols)."""
-        c = np.asarray(contact, np.float64)
+        c = np.asarray(contact)
         c = c.reshape(c.shape[0], -1) if c.ndim > 2 else np.atleast_2d(c)
         if c.shape[1] != self.coef.shape[0]:
             raise IdentifyError(f"contact grids hold {c.shape[1]} nodes, the surrogate {self.coef.shape[0]}")
-        return np.exp(self.intercept + c @ self.coef)
+        out = np.empty((c.shape[0], self.coef.shape[1]))
+        # In blocks: a posterior's ~1e5 kept grids as floats at once would be 8× their size (memory-bound)
+        for a in range(0, c.shape[0], _PREDICT_BLOCK):
+            out[a:a + _PREDICT_BLOCK] = c[a:a + _PREDICT_BLOCK].astype(np.float64) @ self.coef
+        return np.exp(self.intercept + out)
 
 
 def fit_surrogate(contact, frequencies_hz, *, test_fraction: float = 0.25, seed: int = 0) -> ContactSurrogate:

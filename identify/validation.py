@@ -45,6 +45,9 @@ __all__ = [
 #: Default admissible relative frequency distance of a mode pair (design §5: pair inside a window).
 DEFAULT_FREQ_WINDOW = 0.1
 
+#: Grids whose centroids are summed at a time (:func:`contact_centroid`).
+_CENTROID_BLOCK = 4096
+
 
 # ---------------------------------------------------------------------------------------------- δ step
 @dataclass(frozen=True)
@@ -153,11 +156,16 @@ def contact_centroid(grid, u, v) -> np.ndarray:
     u, v = np.asarray(u, dtype=np.float64), np.asarray(v, dtype=np.float64)
     if u.shape != g.shape[-2:] or v.shape != g.shape[-2:]:
         raise IdentifyError(f"coordinates u {u.shape}, v {v.shape}: expected the grid shape {g.shape[-2:]}")
-    n = g.sum(axis=(-2, -1)).astype(np.float64)
+    flat = g.reshape(-1, u.size)
+    uv = np.stack([u.ravel(), v.ravel()], axis=1)
+    sums = np.empty((flat.shape[0], 2))
+    # In blocks, as one product each: a posterior's ~1e5 kept grid pairs would need two float copies at once
+    for a in range(0, flat.shape[0], _CENTROID_BLOCK):
+        sums[a:a + _CENTROID_BLOCK] = flat[a:a + _CENTROID_BLOCK] @ uv
+    n = flat.sum(axis=1, dtype=np.float64)[:, None]
     with np.errstate(invalid="ignore", divide="ignore"):
-        cu = np.where(n > 0, (g * u).sum(axis=(-2, -1)) / n, np.nan)
-        cv = np.where(n > 0, (g * v).sum(axis=(-2, -1)) / n, np.nan)
-    return np.stack([cu, cv], axis=-1)
+        cen = np.where(n > 0, sums / n, np.nan)
+    return cen.reshape(*g.shape[:-2], 2)
 
 
 @dataclass(frozen=True)

@@ -339,7 +339,7 @@ def _constraint_modes(fac, Kb: tuple, Mb: tuple, Phi: np.ndarray, out_rows: np.n
     Kbe = Keb.T.tocsr()
     for j0 in range(0, n_b, block_size):
         j1 = min(j0 + block_size, n_b)
-        Psi_j = -np.asarray(fac.solve(Keb[:, j0:j1].toarray())).reshape(n_e, j1 - j0)
+        Psi_j = -np.asarray(fac.solve(Keb[:, j0:j1].toarray(order="F"))).reshape(n_e, j1 - j0)
         W = Mee @ Psi_j + Meb[:, j0:j1]  # (n_e, bs)
         Y = np.asarray(fac.solve(W)).reshape(n_e, j1 - j0)
         kappa[:, j0:j1] = Kbb[:, j0:j1] + Kbe @ Psi_j

@@ -53,7 +53,7 @@ class RitzSlot:
         # every block-Jacobi correction. ContactPattern already refuses patterns that leave the blade a
         # mechanism; a nearly collinear one can still fail numerically.
         try:
-            self.K_chol = sla.cho_factor(K, check_finite=False)
+            self.K_chol = sla.cho_factor(K, overwrite_a=True, check_finite=False)  # K is this call's own copy
             self.own_chol = sla.cho_factor(self.Kb[n_i:, n_i:], check_finite=False)
         except np.linalg.LinAlgError:
             raise ROMError(f"slot {slot}: its contact pattern ({int(contact.sum()) // 3} contacting nodes) does not "
@@ -172,12 +172,19 @@ def ritz(disk, slots, G0, CG0, DG0, G0own, n_modes):
     Kr[gsl, gsl] = Gflat.T @ CG.reshape(N * n_i, -1)
     Mr[gsl, gsl] = Gflat.T @ DG.reshape(N * n_i, -1)
     Mr[:n_k, gsl] = mu_be_flat.T @ Gflat
+    # Each blade's products with the slot's global and local columns, formed once: the Ritz blocks and the
+    # residuals (residual_rows) take them, and the n × n products are most of a round's work.
+    KG, MG, KL, ML = [], [], [], []
     for k, sl in enumerate(slots):
         ls = slice(off[1 + k], off[2 + k])
         X = sl.L[:n_i]
         gl = np.vstack([Gx[k], Gown[k]])
-        Kr[gsl, gsl] += gl.T @ sl.Kb @ gl
-        Mr[gsl, gsl] += gl.T @ sl.Mb @ gl
+        KG.append(sl.Kb @ gl)
+        MG.append(sl.Mb @ gl)
+        KL.append(sl.Kb @ sl.L)
+        ML.append(sl.Mb @ sl.L)
+        Kr[gsl, gsl] += gl.T @ KG[k]
+        Mr[gsl, gsl] += gl.T @ MG[k]
         # η–local: mass coupling only (K_ηb = 0 in a CB model).
         Mr[:n_k, ls] = disk.mu_be[k].T @ X
         # local–local, every slot pair: X_tᵀ κ_bb[t, s] X_s.
@@ -186,11 +193,12 @@ def ritz(disk, slots, G0, CG0, DG0, G0own, n_modes):
             Xj = sj.L[:n_i]
             Kr[lj, ls] = Xj.T @ sl.CL[j]
             Mr[lj, ls] = Xj.T @ sl.DL[j]
-        Kr[ls, ls] += sl.L.T @ sl.Kb @ sl.L
-        Mr[ls, ls] += sl.L.T @ sl.Mb @ sl.L
-        # global–local: Gᵀ K L_s = Σ_t G_tᵀ κ_bb[t, s] X_s + (slot s's blade).
-        Kr[gsl, ls] = Gflat.T @ sl.CL.reshape(N * n_i, -1) + gl.T @ sl.Kb @ sl.L
-        Mr[gsl, ls] = Gflat.T @ sl.DL.reshape(N * n_i, -1) + gl.T @ sl.Mb @ sl.L
+        Kr[ls, ls] += sl.L.T @ KL[k]
+        Mr[ls, ls] += sl.L.T @ ML[k]
+        # global–local: Gᵀ K L_s = Σ_t G_tᵀ κ_bb[t, s] X_s + (slot s's blade); κ_bb is symmetric, so the sum is
+        # (κ_bb G)_sᵀ X_s, which CG holds: N times fewer products than summing over the slots.
+        Kr[gsl, ls] = CG[k].T @ X + gl.T @ KL[k]
+        Mr[gsl, ls] = DG[k].T @ X + gl.T @ ML[k]
     # Mirror the blocks filled on one side only, then even out round-off.
     Mr[gsl, :n_k] = Mr[:n_k, gsl].T
     Mr[n_k : off[-2], :n_k] = Mr[:n_k, n_k : off[-2]].T
@@ -200,7 +208,7 @@ def ritz(disk, slots, G0, CG0, DG0, G0own, n_modes):
     Mr = 0.5 * (Mr + Mr.T)
     dm = dense_modes(Kr, Mr, n_modes)
     lam = (2 * np.pi * dm.frequencies_hz) ** 2
-    parts = {"off": off, "Gx": Gx, "Gown": Gown, "CG": CG, "DG": DG}
+    parts = {"off": off, "Gx": Gx, "Gown": Gown, "CG": CG, "DG": DG, "KG": KG, "MG": MG, "KL": KL, "ML": ML}
     return lam, dm.shapes, parts
 
 
@@ -210,7 +218,7 @@ def residual_rows(disk, slots, parts, Y, lam):
     Also returns ‖K v‖ and ‖M v‖ over all rows.
     """
     N, n_i, n_k = disk.n_slots, disk.n_i, disk.n_k
-    off, Gx, Gown, CG, DG = parts["off"], parts["Gx"], parts["Gown"], parts["CG"], parts["DG"]
+    off, Gx, CG, DG = parts["off"], parts["Gx"], parts["CG"], parts["DG"]
     Yg = Y[off[-2] : off[-1]]
     Ye = Y[:n_k]
     # x rows of every slot: disk blocks on the global and local parts, μ_be on η.
@@ -226,11 +234,11 @@ def residual_rows(disk, slots, parts, Y, lam):
     R = [Kη - Mη * lam]
     kn2 = np.sum(Kη**2, axis=0)
     mn2 = np.sum(Mη**2, axis=0)
-    for k, sl in enumerate(slots):
+    for k in range(len(slots)):
         Yl = Y[off[1 + k] : off[2 + k]]
-        v = sl.L @ Yl + np.vstack([Gx[k], Gown[k]]) @ Yg  # local coordinates of the Ritz vectors
-        Kv = sl.Kb @ v
-        Mv = sl.Mb @ v
+        # the blade's K v and M v from its products with the slot's columns (v = L Y_l + g Y_g)
+        Kv = parts["KL"][k] @ Yl + parts["KG"][k] @ Yg
+        Mv = parts["ML"][k] @ Yl + parts["MG"][k] @ Yg
         Kv[:n_i] += KX[k]
         Mv[:n_i] += MX[k]
         R.append(Kv - Mv * lam)

@@ -95,7 +95,7 @@ def reduce_sectors(sb: SectorBlocks, n_modes: int, backend: str = "auto") -> Sec
         Psi = np.empty((ni, nq + nc))
         for j0 in range(0, nq + nc, 256):
             j1 = min(j0 + 256, nq + nc)
-            Psi[:, j0:j1] = -np.asarray(fac.solve(Kiq[:, j0:j1].toarray())).reshape(ni, j1 - j0)
+            Psi[:, j0:j1] = -np.asarray(fac.solve(Kiq[:, j0:j1].toarray(order="F"))).reshape(ni, j1 - j0)
         t1 = time.perf_counter()
         ZK = np.asarray(Kiq.T @ Psi)  # K_q̃i Ψ = −K_q̃i K_ii⁻¹ K_iq̃
         A = np.asarray(Miq.T @ Psi)

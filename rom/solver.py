@@ -146,8 +146,8 @@ class _PardisoFactor:
         s = self._solver
         if b.shape[0] != self._A.shape[0]:
             raise ValueError(f"right-hand side has {b.shape[0]} rows, the matrix {self._A.shape[0]}")
-        bf = np.asfortranarray(b)
-        x = np.zeros_like(bf)
+        bf = np.asfortranarray(b)  # Pardiso reads each right-hand side as one column (a no-op for F-order blocks)
+        x = np.empty_like(bf)  # written whole by phase 33 (iparm(6) = 0: the solution goes to x, b is kept)
         err = ctypes.c_int32(0)
         i32, f64 = ctypes.POINTER(ctypes.c_int32), ctypes.POINTER(ctypes.c_double)
         s._mkl_pardiso(

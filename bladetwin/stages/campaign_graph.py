@@ -282,7 +282,7 @@ def _posterior_nodes(p: Pipeline, campaign, opts: RunOptions) -> None:
                  "surrogate": names.POSTERIOR_SURROGATE, "delta_all": names.DELTA_ALL,
                  "factors": names.POSTERIOR_FACTORS, "bd": names.FE_MODEL, "reference": names.REFERENCE,
                  "fit": fits[j], "representation": names.POSTERIOR_REPRESENTATION},
-                {"input": name, "joint": int(j), "seed": opts.seed, "n_steps": opts.posterior_steps}, version=14,
+                {"input": name, "joint": int(j), "seed": opts.seed, "n_steps": opts.posterior_steps}, version=15,
                 label=f"joint {j} posterior ({name} input)")).name
         p.add(Node(names.posterior_patterns(name), posterior.posterior_patterns,
                    {"known": names.KNOWN, "baseline": names.BASELINE, **posts}, {"n_blades": campaign.n_blades},
@@ -327,7 +327,7 @@ def _update_nodes(p: Pipeline, campaign, opts: RunOptions) -> list[str]:
            "delta_all": names.DELTA_ALL, "bd": names.FE_MODEL}
     d1b = _ema_of(campaign, "d1b")
     p.add(Node(names.ROM_UPDATE_STIFFNESS, rom_update.stiffness_node, {**rom, "known": names.KNOWN, **d1b},
-               label="contact stiffness fitted", version=3))  # 2: δ on the tuned pencil (§8.76); 3: settled
+               label="contact stiffness fitted", version=4))  # 2: δ on the tuned pencil (§8.76); 3: settled; 4: χ² stop
     inputs = identify_inputs(campaign, opts)
     sets = {"answer": _answer(opts, "experimental")}
     if "numerical" in inputs:
@@ -350,7 +350,8 @@ def _update_nodes(p: Pipeline, campaign, opts: RunOptions) -> list[str]:
         solves["updated_baseline"] = (names.PATTERNS_BASELINE, "baseline")
     for name, (pats, upd) in solves.items():
         p.add(Node(names.full(name), rom_update.solve_updated,
-                   {**_full_inputs(pats), "update": names.rom_update(upd)}, label=f"full-assembly ROM '{name}' solved"))
+                   {**_full_inputs(pats), "update": names.rom_update(upd)}, label=f"full-assembly ROM '{name}' solved",
+                   version=full.VERSION))
     return list(solves)
 
 
@@ -363,7 +364,7 @@ def _validation_nodes(p: Pipeline, campaign, opts: RunOptions) -> None:
     for name in solves:
         pats = FULL[name]
         p.add(Node(names.full(name), full.solve_assembly, _full_inputs(pats),
-                   label=f"full-assembly ROM '{name}' solved"))
+                   label=f"full-assembly ROM '{name}' solved", version=full.VERSION))
     if opts.updated:
         solves += _update_nodes(p, campaign, opts)
     # version 2: the control B_baseline of both ROMs (cases["rom"])
