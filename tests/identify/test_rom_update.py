@@ -325,9 +325,9 @@ def test_the_updated_rom_takes_its_replaced_patterns():
 
 def test_the_stiffness_fit_stops_where_its_steps_no_longer_lower_the_cost_and_no_further_than_the_data_resolve(
         setup, monkeypatch):
-    """The case above (frequencies off by 0.3 % at random: a shallow valley), fitted to the end without the
-    χ² rule and with it: the rule ends the fit sooner, and where it ends lies within the data's standard
-    deviation of ln k_n from where the longer fit ends, with nearly the same residual."""
+    """Frequencies off by 0.3 % at random, as a real specimen's model error is (a shallow valley where k and the
+    blades' ε trade), fitted without the χ² rule and with it: the rule ends the fit sooner, where it ends lies
+    within the data's standard deviation of ln k_n from where the longer fit ends, and the residual is the same."""
     import identify.rom_update as ru
 
     _, tracker, parts, pats = setup
