@@ -13,7 +13,7 @@ from identify.sensitivity import Sensitivity, sensitivity
 from identify.synthetic import SyntheticPatterns
 from rom.cache import hash_inputs
 
-__all__ = ["DaskSettings", "sensitivity_node", "dataset_node"]
+__all__ = ["DaskSettings", "sensitivity_node", "dataset_node", "parts_key"]
 
 
 @dataclass(frozen=True)
@@ -32,6 +32,20 @@ def sensitivity_node(disk, blade, synthetic: SyntheticPatterns, *, n_features: i
     return sensitivity(disk, blade, synthetic.L, synthetic.R, n_features=n_features, progress=False)
 
 
+def parts_key(disk, blade, synthetic: SyntheticPatterns, delta_all: np.ndarray, grid, n_features: int,
+              n_delta_modes: int) -> str:
+    """The name of a dataset build's parts folder: one per node, since each build removes its folder when done.
+
+    Two campaigns of one run (a re-assembly) can share the model and the δ grid but not their blades' δ: their
+    dataset nodes are then two nodes that run side by side, and with one folder the first to finish removed the
+    parts the other was still writing. The blades' δ set the node apart (nodes of one key run once).
+    """
+    from identify.tracking import model_key
+
+    return hash_inputs("dataset-parts", model_key(disk, blade), synthetic.L, synthetic.R, grid,
+                       np.asarray(delta_all, np.float64), n_features, n_delta_modes)[:32]
+
+
 def dataset_node(disk, blade, synthetic: SyntheticPatterns, delta_all: np.ndarray, sens: Sensitivity, store,
                  dask: DaskSettings, *, n_features: int, n_delta_modes: int, step_pct: float) -> Dataset:
     """The node: the δ grid (spanning the measured deltas) × every pattern pair, by reanalysis.
@@ -40,11 +54,9 @@ def dataset_node(disk, blade, synthetic: SyntheticPatterns, delta_all: np.ndarra
     where it stopped; the parts are removed once the dataset is complete.
     """
     from identify.dataset_parts import build_dataset_parts
-    from identify.tracking import model_key
 
     grid = grid_from_deltas(delta_all[:, :n_delta_modes], step=step_pct / 100, n_delta_modes=n_delta_modes)
-    key = hash_inputs("dataset-parts", model_key(disk, blade), synthetic.L, synthetic.R, grid, n_features,
-                      n_delta_modes)[:32]
+    key = parts_key(disk, blade, synthetic, delta_all, grid, n_features, n_delta_modes)
     parts = store.memo(f"dataset-parts-{key}").folder
     ds = build_dataset_parts(disk, blade, synthetic.L, synthetic.R, grid, parts, n_delta_modes=n_delta_modes,
                              sensitivity=sens, n_features=n_features, workers=dask.workers,

@@ -129,3 +129,29 @@ def test_parts_cleared_by_a_concurrent_build_are_computed_again(serial, tmp_path
     ds = build_dataset_parts(disk_cb(), blade(), PL, PR, DELTA_GRID, folder, say=said.append)
     assert f"0 pairs already in {folder}, {N_SIDE**2} to compute" in said[0]
     _same(ds, serial)
+
+
+def test_two_dataset_nodes_of_one_grid_keep_apart_so_one_s_cleanup_leaves_the_other_s_parts(tmp_path):
+    """A re-assembly's two campaigns share the model and the δ grid, not their blades' δ: two dataset nodes that
+    run side by side. The one that finishes first removes its parts folder; the other's, half written, stays."""
+    from types import SimpleNamespace
+
+    from bladetwin.stages.dataset import DaskSettings, dataset_node, parts_key
+    from bladetwin.stages.store import Store
+    from identify.delta_grid import grid_from_deltas
+
+    PL, PR = patterns()
+    synthetic = SimpleNamespace(L=PL[:2], R=PR[:2])
+    store = Store(tmp_path / "store")
+    first = np.zeros((3, blade().m))
+    first[:, 0] = [-0.004, 0.0, 0.008]
+    second = first + 1e-5  # another test of the same blades: the same grid (rounded outward to 0.5 %)
+    kw = {"n_features": 3, "n_delta_modes": 3, "step_pct": 0.5}
+    grids = [grid_from_deltas(d[:, :3], step=0.005, n_delta_modes=3) for d in (first, second)]
+    assert all(np.array_equal(a, b) for a, b in zip(*grids, strict=True))
+    other = store.memo(f"dataset-parts-{parts_key(disk_cb(), blade(), synthetic, second, grids[1], 3, 3)}").folder
+    other.mkdir(parents=True)
+    (other / "part-L0000-R0000.parquet").write_bytes(b"the other node's part")
+    ds = dataset_node(disk_cb(), blade(), synthetic, first, None, store, DaskSettings(), **kw)
+    assert ds.frequencies_hz.shape[0] > 0
+    assert (other / "part-L0000-R0000.parquet").read_bytes() == b"the other node's part"
