@@ -57,9 +57,11 @@ _LOG_K_STEP = 0.05  # finite-difference step on ln k (5 %)
 LOG_PRIOR_STD = float(np.log(1e3))
 #: The stiffness fit stops when a step moves ln k by less than this share of its standard deviation.
 STOP_SHARE = 0.01
-#: ... or when a step lowers its cost (χ²: the squared normalised residuals and prior terms) by less than this:
-#: a posterior density 5 % higher, far below the Δχ² = 1 of one standard deviation; on a shallow valley where
-#: k and the blades' ε trade, the steps after it only creep along the valley (docs/design.md §8.89).
+#: ... or when the undamped Gauss–Newton step from where it stands would lower its cost (χ²: the squared
+#: normalised residuals and prior terms) by less than this: the optimum is then within a posterior density 5 %
+#: higher, far below the Δχ² = 1 of one standard deviation. On a shallow valley where k and the blades' ε trade,
+#: the steps after it only creep along the valley (docs/design.md §8.89). Taken from the normal equations, not
+#: from the last step's gain, which a heavily damped step keeps small far from the optimum.
 STOP_CHI2 = 0.1
 
 
@@ -280,12 +282,12 @@ def fit_contact_stiffness(tracker: ModeTracker, compliance_unit: np.ndarray, joi
     Stops when an iteration moves ln k by less than :data:`STOP_SHARE` of its standard deviation (from the
     normal equations): finer steps are below what the data resolve, and below the round-off of the ROM's
     eigen-solves, which makes the cost flat to about 1e-5 near the optimum (a model rebuilt on other BLAS
-    threads moves k by about 5e-5 relative); or when a step lowers the cost by less than :data:`STOP_CHI2`
-    (χ² units), a gain the data do not resolve. A stiffness that the data inform less than its prior does is
-    held where it is (:func:`_prior_dominated`): on a joint nearly rigid in one direction its steps would
-    only swing back and forth. On a specimen whose model error is far above the tests' noise, k_n and the
-    blades' ε trade along a shallow valley, and ``max_iter`` ends the fit before it settles (docs/design.md
-    §8.42).
+    threads moves k by about 5e-5 relative); or when the Gauss–Newton step would lower the cost by less than
+    :data:`STOP_CHI2` (χ² units), a gain the data do not resolve. A stiffness that the data inform less than its
+    prior does is held where it is (:func:`_prior_dominated`): on a joint nearly rigid in one direction its
+    steps would only swing back and forth. On a specimen whose model error is far above the tests' noise, k_n
+    and the blades' ε trade along a shallow valley, and ``max_iter`` ends the fit before it settles
+    (docs/design.md §8.42).
 
     Parameters
     ----------
@@ -315,6 +317,9 @@ def fit_contact_stiffness(tracker: ModeTracker, compliance_unit: np.ndarray, joi
     for it in range(1, max_iter + 1):
         A, b = problem.normal_equations(log_k, eps, parts, held)
         held |= _prior_dominated(A, log_prior_std)
+        if b @ _held_solve(A, b, held) < STOP_CHI2:  # Gauss–Newton's predicted gain, whatever the damping
+            it, settled = it - 1, True
+            break
         while True:
             step = _held_solve(A + lm * np.diag(np.diag(A)), b, held)
             step[:2] = np.clip(step[:2], -1.0, 1.0)  # at most a factor e per iteration on k
@@ -326,12 +331,11 @@ def fit_contact_stiffness(tracker: ModeTracker, compliance_unit: np.ndarray, joi
         if new_cost > cost:
             settled = True
             break
-        gain = cost - new_cost
         log_k, eps, cost, parts, lm = new_k, new_eps, new_cost, new_parts, max(lm / 10, 1e-6)
         if progress is not None:
             progress(f"contact stiffness, iteration {it}: k_n = {np.exp(log_k[0]):.3g}, "
                      f"k_t = {np.exp(log_k[1]):.3g} N/m³")
-        if gain < STOP_CHI2 or np.all(held | (np.abs(step[:2]) < STOP_SHARE * np.sqrt(np.diag(np.linalg.inv(A))[:2]))):
+        if np.all(held | (np.abs(step[:2]) < STOP_SHARE * np.sqrt(np.diag(np.linalg.inv(A))[:2]))):
             settled = True
             break
     A, _ = problem.normal_equations(log_k, eps, parts, held)

@@ -327,7 +327,7 @@ def _update_nodes(p: Pipeline, campaign, opts: RunOptions) -> list[str]:
            "delta_all": names.DELTA_ALL, "bd": names.FE_MODEL}
     d1b = _ema_of(campaign, "d1b")
     p.add(Node(names.ROM_UPDATE_STIFFNESS, rom_update.stiffness_node, {**rom, "known": names.KNOWN, **d1b},
-               label="contact stiffness fitted", version=4))  # 2: δ on the tuned pencil (§8.76); 3: settled; 4: χ² stop
+               label="contact stiffness fitted", version=5))  # 2: δ on the tuned pencil (§8.76); 3: settled; 5: χ²
     inputs = identify_inputs(campaign, opts)
     sets = {"answer": _answer(opts, "experimental")}
     if "numerical" in inputs:
