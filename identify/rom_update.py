@@ -314,9 +314,12 @@ def fit_contact_stiffness(tracker: ModeTracker, compliance_unit: np.ndarray, joi
     problem.free = {j: calibrated_modes(parts[j][1]) for j in problem.keys}
     lm, it, settled = 1e-2, 0, False
     held = np.zeros(2, bool)
+    current = None  # the normal equations at the answer, when the loop ends with them (a held k zeroes a column)
     for it in range(1, max_iter + 1):
         A, b = problem.normal_equations(log_k, eps, parts, held)
-        held |= _prior_dominated(A, log_prior_std)
+        newly_held = _prior_dominated(A, log_prior_std) & ~held
+        held |= newly_held
+        current = None if newly_held.any() else A
         if b @ _held_solve(A, b, held) < STOP_CHI2:  # Gauss–Newton's predicted gain, whatever the damping
             it, settled = it - 1, True
             break
@@ -332,13 +335,14 @@ def fit_contact_stiffness(tracker: ModeTracker, compliance_unit: np.ndarray, joi
             settled = True
             break
         log_k, eps, cost, parts, lm = new_k, new_eps, new_cost, new_parts, max(lm / 10, 1e-6)
+        current = None
         if progress is not None:
             progress(f"contact stiffness, iteration {it}: k_n = {np.exp(log_k[0]):.3g}, "
                      f"k_t = {np.exp(log_k[1]):.3g} N/m³")
         if np.all(held | (np.abs(step[:2]) < STOP_SHARE * np.sqrt(np.diag(np.linalg.inv(A))[:2]))):
             settled = True
             break
-    A, _ = problem.normal_equations(log_k, eps, parts, held)
+    A = problem.normal_equations(log_k, eps, parts, held)[0] if current is None else current
     cov = np.linalg.inv(A)
     res = np.concatenate([p[3] for p in parts.values()]) * 100
     return StiffnessFit(ContactStiffness(float(np.exp(log_k[0])), float(np.exp(log_k[1]))),

@@ -121,9 +121,9 @@ def update_node(disk, blade, dataset: Dataset, features: Features, delta_all: np
     # blade whose test cannot see a mode takes it, and each is measured from it: design §8.53
     centre = common_correction(list(fits.values()), m)
     for k, j in enumerate(int(j) for j in features.joints):
-        if j in fits and (hold := held_at_common(fits[j], centre)) is not None:
-            fits[j] = fit_corrections(upd, patterns[j - 1], delta_all[j - 1], features.measured_hz[k], sigma[j],
-                                      held=hold)
+        if j in fits:
+            fits[j] = _at_centre(upd, patterns[j - 1], delta_all[j - 1], features.measured_hz[k], sigma[j], centre,
+                                 fits[j])
     replaced = _replace_inconsistent(upd, fits, candidates or {}, centre, features, delta_all, sigma)
     for j, fit in fits.items():
         eps[j - 1], done[j - 1], res[j - 1] = fit.correction, True, fit.residual_pct
@@ -132,6 +132,14 @@ def update_node(disk, blade, dataset: Dataset, features: Features, delta_all: np
         for text in calibration_warnings(j, fit, free_hz, filmed=filmed, centre=centre):
             warnings.warn(text, UserWarning, stacklevel=2)
     return UpdatedROM(stiff, eps, done, res, res_paper, free_hz, tuple(replaced))
+
+
+def _at_centre(upd, pattern: ContactPattern, delta, y, sigma, centre, fit=None):
+    """A blade's in-situ fit (``fit``, or a fresh one) refitted with the blades' common correction ``centre`` held
+    on the free modes its test cannot see (:func:`identify.in_situ.held_at_common`); as it was where there are none."""
+    fit = fit_corrections(upd, pattern, delta, y, sigma) if fit is None else fit
+    hold = held_at_common(fit, centre)
+    return fit if hold is None else fit_corrections(upd, pattern, delta, y, sigma, held=hold)
 
 
 def _replace_inconsistent(upd, fits: dict, candidates: dict, centre, features: Features, delta_all, sigma) -> list:
@@ -144,9 +152,7 @@ def _replace_inconsistent(upd, fits: dict, candidates: dict, centre, features: F
         y = features.measured_hz[rows[j]]
 
         def fit_one(pat, j=j, y=y):
-            fit = fit_corrections(upd, pat, delta_all[j - 1], y, sigma[j])
-            hold = held_at_common(fit, centre)
-            return fit if hold is None else fit_corrections(upd, pat, delta_all[j - 1], y, sigma[j], held=hold)
+            return _at_centre(upd, pat, delta_all[j - 1], y, sigma[j], centre)
 
         if (got := consistent_pattern(fit_one, pats, sigma[j], centre)) is not None:
             replaced.append((int(j), got[0]))
