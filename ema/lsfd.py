@@ -17,6 +17,7 @@ from dataclasses import replace
 import numpy as np
 from scipy.linalg import solve_triangular
 
+from .fit_noise import band_floor
 from .frf import FRF_FORMS, FRFSet
 from .modal import ModalModel, modal_from_pole
 from .poles import band_data
@@ -262,11 +263,14 @@ def _pole_terms(A: np.ndarray, poles: np.ndarray, freq_hz: np.ndarray, power: in
     return H * jw**power if power else H
 
 
-def shapes_from_residues(A: np.ndarray, poles: np.ndarray, frf: FRFSet) -> tuple[np.ndarray, tuple, str]:
+def shapes_from_residues(A: np.ndarray, poles: np.ndarray, frf: FRFSet,
+                         noise: np.ndarray | None = None) -> tuple[np.ndarray, tuple, str]:
     """Mode shapes from residue matrices (rank-one approximation), mass-scaled when driving points exist.
 
     The shape of mode r is the dominant singular vector of its residue matrix ``A_r`` (n_outputs × n_inputs),
-    so every reference contributes. It is then scaled to unit modal mass by a least-squares fit over all
+    so every reference contributes. With ``noise`` (each FRF's noise σ, shape (n_outputs, n_inputs)) it is the
+    rank-one fit weighted by ``1/σ²`` instead (:func:`weighted_rank_one`): each residue is one FRF's fit, its
+    error in proportion to that FRF's noise. It is then scaled to unit modal mass by a least-squares fit over all
     driving points d = (o, i) of ``A_r = phi phi^T / (2 j omega_d)``: with ``phi = c u`` and the driven
     columns ``A_r[:, i] = c^2 u u_o / (2 j omega_d)``,
 
@@ -288,9 +292,12 @@ def shapes_from_residues(A: np.ndarray, poles: np.ndarray, frf: FRFSet) -> tuple
     cols = np.array([d[1] for d in drive], dtype=int)
     phi = np.zeros((len(dofs), n), dtype=np.complex128)
     scaling = "mass" if drive else "unit"
+    if noise is not None:
+        sd = np.asarray(noise, np.float64) if on_outputs else np.asarray(noise, np.float64).T
+        w = (np.min(sd) / sd) ** 2          # only the ratios matter; scaled so that none overflows
     for r in range(n):
         B = A[r] if on_outputs else A[r].T  # rows: the shape's DOFs
-        u = np.linalg.svd(B)[0][:, 0]
+        u = np.linalg.svd(B)[0][:, 0] if noise is None else weighted_rank_one(B, w)
         v = None
         if drive:
             ud = u[rows]
@@ -307,6 +314,35 @@ def shapes_from_residues(A: np.ndarray, poles: np.ndarray, frf: FRFSet) -> tuple
             v = u * np.exp(-1j * np.angle(u[k])) / max(np.linalg.norm(u), 1e-300)
         phi[:, r] = v
     return phi, dofs, scaling
+
+
+def weighted_rank_one(B: np.ndarray, w: np.ndarray, max_iter: int = 100, rtol: float = 1e-10) -> np.ndarray:
+    """The unit vector ψ/‖ψ‖ of the rank-one ``ψ lᵀ`` nearest ``B`` in ``Σ w_ij |B_ij − ψ_i l_j|²``.
+
+    Alternating least squares (each step exact for one factor, so the cost never rises), started from the
+    dominant singular pair of ``√w ∘ B``. Why weighted: near a hammer the struck blade's FRFs carry a mass line
+    about 1000 times the resonances, and its noise; unweighted, the few residues there took a disk mode's shape
+    (48-blade seed 5, 322.7 Hz: 0.87 at the struck blade's outputs against the truth's 0.004, MAC 0.00).
+    With equal weights it is the dominant singular vector.
+
+    Parameters
+    ----------
+    B : ndarray of complex, shape (m, n)
+    w : ndarray of float, shape (m, n)
+        Positive weights.
+    """
+    u, s, vh = np.linalg.svd(np.sqrt(w) * B, full_matrices=False)
+    col = np.sqrt(np.mean(w, axis=0))
+    l = s[0] * vh[0] / col                                   # the weighted factor's column scale taken out
+    psi = np.zeros(B.shape[0], np.complex128)
+    Bw = w * B
+    for _ in range(max_iter):
+        prev = psi
+        psi = (Bw @ np.conj(l)) / (w @ np.abs(l) ** 2)
+        l = (Bw.T @ np.conj(psi)) / (w.T @ np.abs(psi) ** 2)
+        if prev.any() and abs(abs(np.vdot(prev, psi)) / (np.linalg.norm(prev) * np.linalg.norm(psi)) - 1) < rtol:
+            break
+    return psi / np.linalg.norm(psi)
 
 
 def modal_model(
@@ -336,8 +372,10 @@ def modal_model(
         quality = np.asarray(quality, dtype=float).reshape(-1)[srt]
     A, lower, upper = lsfd(frf, poles, band, residuals)
     data_band = band_data(frf, band, per="none").band_hz
+    # each residue weighted by its FRF's noise where several references share a shape (design §8.93)
+    noise = band_floor(frf, data_band) if min(frf.n_outputs, frf.n_inputs) > 1 else None
     phi, dofs, scaling = shapes_from_residues(local_residues(frf, poles, data_band, A) if local_shapes else A, poles,
-                                              frf)
+                                              frf, noise)
     f, z = modal_from_pole(poles)
     return ModalModel(
         frequencies_hz=f, damping_ratio=z, shapes=phi, dofs=dofs, quality=quality, residues=A,

@@ -166,11 +166,10 @@ def campaign_sources(campaign, model: Source, store, opts: RunOptions, nominal: 
 def _ema_nodes(p: Pipeline, campaign) -> None:
     for t in campaign.tests:
         name = names.test_name(t)
-        # a version per change of the EMA's results (design §8: assembly 13 in §8.61, all +1 in §8.62, assembly 15
-        # in §8.63: the shapes by each FRF's own noise; all +1 in §8.64: σ with the lines' noise correlation;
-        # assembly 17 in §8.66, 18 in §8.67: growth's refusals; 19 in §8.70: the Gram's round-off; 20 in §8.73)
+        # a version per change of the EMA's results (design §8: assembly 13 in §8.61, all +1 in §8.62, assembly 15 in
+        # §8.63, all +1 in §8.64, assembly 17-20 in §8.66, §8.67, §8.70, §8.73; all +1 in §8.93: shapes weighted)
         p.add(Node(names.ema(name), measured.fit_test, {"test": names.test_source(name)}, label=f"EMA {name}",
-                   version=20 if t.type == "assembly" else 5))
+                   version=21 if t.type == "assembly" else 6))
     p.add(Node(names.BLADE_TABLE, measured.blade_table, _ema_of(campaign, "blade"), where="parent"))
 
 
