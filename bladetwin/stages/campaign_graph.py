@@ -167,9 +167,9 @@ def _ema_nodes(p: Pipeline, campaign) -> None:
     for t in campaign.tests:
         name = names.test_name(t)
         # a version per change of the EMA's results (design §8: assembly 13 in §8.61, all +1 in §8.62, assembly 15 in
-        # §8.63, all +1 in §8.64, assembly 17-20 in §8.66, §8.67, §8.70, §8.73; all +1 in §8.93: shapes weighted)
+        # §8.63, all +1 in §8.64, assembly 17-20 in §8.66, §8.67, §8.70, §8.73; all +1 in §8.93; assembly 22 in §8.94)
         p.add(Node(names.ema(name), measured.fit_test, {"test": names.test_source(name)}, label=f"EMA {name}",
-                   version=21 if t.type == "assembly" else 6))
+                   version=22 if t.type == "assembly" else 6))
     p.add(Node(names.BLADE_TABLE, measured.blade_table, _ema_of(campaign, "blade"), where="parent"))
 
 

@@ -18,7 +18,7 @@ from ema.lsfd import modal_model
 from ema.mac import mac_paired, pair_by_frequency
 from ema.modal import ModalModel, pole_from_modal
 from ema.uncertainty import pole_std
-from ema.unexplained import fill_unexplained, unexplained_lines, with_margins
+from ema.unexplained import fill_unexplained, missed_beside, unexplained_lines, with_margins
 
 from .synth import modal_frfs, rig_noise
 
@@ -148,3 +148,30 @@ def test_a_scan_window_takes_in_the_modes_whose_half_power_band_reaches_into_it(
     assert lo == pytest.approx(189.24, rel=1e-12) and hi == pytest.approx(200.8 * 1.003, rel=1e-12)
     assert with_margins((192.0, 198.0), model, (180.0, 240.0)) == (192.0, 198.0)
     assert with_margins((190.5, 200.5), model, (189.5, 201.0)) == (189.5, 201.0)   # the band bounds it
+
+
+def _peaks(freq: np.ndarray, centres: list[float], heights: list[float], width: float = 0.4) -> np.ndarray:
+    """A scaled residual with Lorentzian peaks over a floor of 1 (the scan's z: noise alone stays near 1)."""
+    return 1.0 + sum(h / (1.0 + ((freq - c) / width) ** 2) for c, h in zip(centres, heights, strict=True))
+
+
+def test_a_missed_mode_just_outside_a_scan_window_is_named_as_its_margin():
+    """``missed_beside``: beyond an edge whose line stands above the threshold, the highest peak of the scaled
+    residual within the window's half-width that rises above the edge's line; nothing where the edge is below the
+    threshold, where the peak lies beyond that reach, or where the residual only falls away from the edge (the tail
+    of the window's own mode)."""
+    freq = 0.25 * np.arange(1440, 1841)                          # 360-460 Hz
+    threshold = 20.0
+    # the window's own mode at 401 Hz; a missed one at 408.5 Hz (inside the reach 405-410 Hz) and a stronger one at
+    # 414 Hz (beyond it); below the window, a peak at 392 Hz whose tail stays under the threshold at 395 Hz
+    z = _peaks(freq, [401.0, 408.5, 414.0, 392.0], [2e3, 3e3, 1e4, 30.0])
+    assert z[np.argmin(np.abs(freq - 405.0))] > threshold and z[np.argmin(np.abs(freq - 395.0))] < threshold
+    np.testing.assert_allclose(missed_beside((395.0, 405.0), freq, z, threshold), [408.5])
+    # the same residual, the 408.5 Hz peak gone: the only rise within reach is 414 Hz's tail, not a peak
+    z2 = _peaks(freq, [401.0, 414.0, 392.0], [2e3, 1e4, 30.0])
+    assert missed_beside((395.0, 405.0), freq, z2, threshold).size == 0
+    # a window whose edges stand under the threshold is left alone
+    assert missed_beside((430.0, 440.0), freq, np.ones(freq.size), threshold).size == 0
+    # below the window as above: a missed mode at 391.5 Hz whose tail crosses the lower edge
+    z3 = _peaks(freq, [401.0, 391.5], [5e4, 4e4])
+    np.testing.assert_allclose(missed_beside((395.0, 405.0), freq, z3, threshold), [391.5])
