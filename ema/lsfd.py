@@ -332,14 +332,15 @@ def weighted_rank_one(B: np.ndarray, w: np.ndarray, max_iter: int = 100, rtol: f
         Positive weights.
     """
     u, s, vh = np.linalg.svd(np.sqrt(w) * B, full_matrices=False)
-    col = np.sqrt(np.mean(w, axis=0))
-    l = s[0] * vh[0] / col                                   # the weighted factor's column scale taken out
+    if not s[0] > 0:
+        return u[:, 0]                                       # no residue at all: no direction to weight
+    part = s[0] * vh[0] / np.sqrt(np.mean(w, axis=0))         # the weighted factor's column scale taken out
     psi = np.zeros(B.shape[0], np.complex128)
     Bw = w * B
     for _ in range(max_iter):
         prev = psi
-        psi = (Bw @ np.conj(l)) / (w @ np.abs(l) ** 2)
-        l = (Bw.T @ np.conj(psi)) / (w.T @ np.abs(psi) ** 2)
+        psi = (Bw @ np.conj(part)) / (w @ np.abs(part) ** 2)
+        part = (Bw.T @ np.conj(psi)) / (w.T @ np.abs(psi) ** 2)
         if prev.any() and abs(abs(np.vdot(prev, psi)) / (np.linalg.norm(prev) * np.linalg.norm(psi)) - 1) < rtol:
             break
     return psi / np.linalg.norm(psi)
